@@ -1,0 +1,5 @@
+import sys
+
+from bstool.cli import main
+
+sys.exit(main())

@@ -1,0 +1,1 @@
+"""One module per `bstool` subcommand; each defines ``command``."""
