@@ -54,6 +54,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "bstool.commands.extrapolate",
         "Distance beyond MAX_TRANS, with optional re-initialisation.",
     ),
+    "paths": (
+        "bstool.commands.paths",
+        "Disc paths of several controllers on one figure (Fig. 18).",
+    ),
     "rotate": ("bstool.commands.rotate", "Shift a controller's legs to turn its heading."),
     "report": ("bstool.commands.report", "HTML report comparing evolve runs and controllers."),
 }

@@ -1,0 +1,51 @@
+"""``bstool paths``: several controllers' disc paths on one figure (paper Fig. 18), with the
+lateral deviation from the straight line and the sway as numbers."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from bstool.experiments import common
+from bstool.experiments.paths import path_shape
+
+
+@click.command("paths")
+@click.argument("controllers", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option(
+    "-T",
+    "--transitions",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Transitions (default: each controller's max_trans, else 30).",
+)
+@click.option("--plot", type=click.Path(dir_okay=False), help="PNG with every path.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+def command(
+    controllers: tuple[str, ...], transitions: int | None, plot: str | None, as_json: bool
+) -> None:
+    """Simulate each CONTROLLER and compare the paths of the disc."""
+    from bstool.sim.simulator import SimResult, Simulator
+
+    runs: list[tuple[str, SimResult]] = []
+    for path in controllers:
+        loaded = common.load(path)
+        T = common.default_transitions(loaded.controller, transitions)
+        runs.append((loaded.name, Simulator(loaded.spec).run(loaded.controller.states(T))))
+    shapes = {name: path_shape(r.path) for name, r in runs}
+    if as_json:
+        click.echo(json.dumps({name: s.to_json() for name, s in shapes.items()}))
+    else:
+        click.echo(f"{'controller':16}{'dist cm':>9}{'len cm':>9}{'max dev':>9}{'rms dev':>9}"
+                   f"{'sway':>8}{'heading':>9}")  # fmt: skip
+        for name, s in shapes.items():
+            click.echo(
+                f"{name:16}{s.distance * 100:9.2f}{s.length * 100:9.2f}"
+                f"{s.max_deviation * 100:9.2f}{s.rms_deviation * 100:9.2f}"
+                f"{s.sway * 100:8.2f}{s.heading:8.1f}°"
+            )
+    if plot:
+        from bstool.sim.plot import plot_paths
+
+        plot_paths(plot, runs, title="Disc paths")

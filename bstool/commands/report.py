@@ -1,0 +1,53 @@
+"""``bstool report``: an HTML page comparing evolve runs / controllers."""
+
+from __future__ import annotations
+
+import click
+
+
+@click.command("report")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=False))
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(file_okay=False),
+    default="report",
+    show_default=True,
+    help="Directory for index.html, report.json and the PNGs (replaced as a whole).",
+)
+@click.option(
+    "-T",
+    "--transitions",
+    type=click.IntRange(min=1),
+    default=30,
+    show_default=True,
+    help="MAX_TRANS for paths, failures and rotations.",
+)
+@click.option(
+    "--extrapolate",
+    type=click.IntRange(min=2),
+    default=120,
+    show_default=True,
+    help="Transitions of the extrapolation curves.",
+)
+@click.option("--workers", type=click.IntRange(min=1), default=None, help="Physics threads.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
+def command(
+    inputs: tuple[str, ...],
+    out: str,
+    transitions: int,
+    extrapolate: int,
+    workers: int | None,
+    quiet: bool,
+) -> None:
+    """Compare INPUTS (evolve run directories or controller files): fitness curves, disc paths,
+    mobility under single failures, distance beyond MAX_TRANS, spread over leg rotations, and
+    a table of the numbers. Open OUT/index.html in any browser (no network needed)."""
+    from bstool.experiments.report import build_report
+
+    def say(msg: str) -> None:
+        if not quiet:
+            click.echo(f"... {msg}", err=True)
+
+    index = build_report(inputs, out, transitions, extrapolate, workers, progress=say)
+    click.echo(f"report: {index}")

@@ -1,0 +1,236 @@
+"""``bstool simulate``: play a controller (or a states file) on the MuJoCo robot.
+
+mujoco is imported only after the GL backend is chosen (``--video`` renders offscreen).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+from bstool import fileio
+from bstool.errors import InputError
+from bstool.moduleid import ModuleId, parse_module
+from bstool.robot import RobotSpec
+
+DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS
+EXAMPLE = "example_states.json"
+
+
+@dataclass
+class Source:
+    label: str
+    states: Any  # np.ndarray (T+1, n, m), validated
+    spec: RobotSpec
+    failed: list[ModuleId]
+
+
+@click.command("simulate")
+@click.argument("controller", required=False, type=click.Path(dir_okay=False))
+@click.option(
+    "--states",
+    "states_file",
+    type=click.Path(dir_okay=False),
+    help="A states file (JSON list of T+1 frames of n lists of m ints) instead of a controller.",
+)
+@click.option(
+    "-T",
+    "--transitions",
+    type=click.IntRange(min=0),
+    default=None,
+    help="Transitions to run (default: the controller's max_trans, else 30; a states file: all).",
+)
+@click.option(
+    "--fail",
+    "failed",
+    multiple=True,
+    metavar="L.M",
+    help="A failed module (leg.module, 0 = lead) held at its R^0 state; repeatable.",
+)
+@click.option(
+    "--transition-time",
+    type=float,
+    default=None,
+    help="Seconds of physics per transition (default: the servo's full-range time × 1.25).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object (metres).")
+@click.option(
+    "--plot", type=click.Path(dir_okay=False), help="Write the disc path as a PNG (paper Fig. 18)."
+)
+@click.option(
+    "--video", type=click.Path(dir_okay=False), help="Render the run offscreen to an MP4 file."
+)
+@click.option("--view", is_flag=True, help="Watch the run in MuJoCo's viewer (needs a display).")
+@click.option(
+    "--seed",
+    type=int,
+    default=0,
+    show_default=True,
+    help="Recorded in the output; the simulation itself has no randomness.",
+)
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+def command(
+    controller: str | None,
+    states_file: str | None,
+    transitions: int | None,
+    failed: tuple[str, ...],
+    transition_time: float | None,
+    as_json: bool,
+    plot: str | None,
+    video: str | None,
+    view: bool,
+    seed: int,
+    quiet: bool,
+) -> None:
+    """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
+    print the disc's displacement and distance (paper eq. 6). Without either, run the built-in
+    example gait."""
+    if video:
+        from bstool.sim.gl import configure_headless_gl
+
+        configure_headless_gl()  # before mujoco is imported
+    if view:
+        from bstool.sim.view import require_display
+
+        require_display()  # fail before simulating
+
+    source = _load_source(controller, states_file, transitions, failed)
+
+    from bstool.sim.simulator import Simulator
+
+    sim = Simulator(source.spec, transition_time=transition_time)
+    result = _render(sim, source.states, video, quiet) if video else sim.run(source.states)
+
+    if plot:
+        from bstool.sim.plot import plot_paths
+
+        name = "example" if controller is None and states_file is None else Path(source.label).name
+        plot_paths(plot, [(name, result)], title="Disc path (paper Fig. 18 style)")
+
+    out = result.to_json()
+    out.update(
+        {
+            "transitions": result.transitions,
+            "transition_time": sim.transition_time,
+            "source": source.label,
+            "failed": [str(m) for m in source.failed],
+            "seed": seed,
+            "units": "m",
+        }
+    )
+    if as_json:
+        click.echo(json.dumps(out))
+    else:
+        dx, dy = result.displacement
+        failed_text = ", ".join(m.label for m in source.failed) or "none"
+        click.echo(f"source:       {source.label}")
+        click.echo(
+            f"run:          {result.transitions} transitions × {sim.transition_time:g} s,"
+            f" failed modules: {failed_text}"
+        )
+        click.echo(f"displacement: dx = {dx:+.4f} m, dy = {dy:+.4f} m")
+        click.echo(f"distance:     {result.distance:.4f} m ({result.distance * 100:.2f} cm)")
+        for name, path in (("plot", plot), ("video", video)):
+            if path:
+                click.echo(f"{name}:{' ' * (13 - len(name))}{path}")
+
+    if view:
+        from bstool.sim.view import view_run
+
+        view_run(sim, source.states)
+
+
+def _load_source(
+    controller: str | None,
+    states_file: str | None,
+    transitions: int | None,
+    failed: tuple[str, ...],
+) -> Source:
+    if controller and states_file:
+        raise InputError(
+            "give either a CONTROLLER file or --states FILE, not both",
+            hint="bstool simulate best.json, or bstool simulate --states run.json",
+        )
+    if controller:
+        data = fileio.read_json(controller, "controller file")
+        if isinstance(data, list):  # a states file given as the argument
+            return _from_states(data, controller, transitions, failed)
+        return _from_controller(controller, data, transitions, failed)
+    if states_file:
+        data = fileio.read_json(states_file, "states file")
+        return _from_states(data, states_file, transitions, failed)
+    example = resources.files("bstool") / "data" / EXAMPLE
+    data = json.loads(example.read_text(encoding="utf-8"))
+    return _from_states(data, f"built-in example ({EXAMPLE})", transitions, failed)
+
+
+def _from_states(data: Any, label: str, transitions: int | None, failed: tuple[str, ...]) -> Source:
+    from bstool.sim.states import hold_failed, states_from_json
+
+    spec = RobotSpec()
+    states = states_from_json(data, spec, where=label)
+    if transitions is not None:
+        if transitions + 1 > len(states):
+            raise InputError(
+                f"{label} has {len(states)} frames (T = {len(states) - 1}); cannot run"
+                f" {transitions} transitions",
+                hint=f"use -T {len(states) - 1} or fewer, or give a longer states file",
+            )
+        states = states[: transitions + 1]
+    mids = [parse_module(f, spec.legs, spec.modules) for f in failed]
+    return Source(label, hold_failed(states, mids), spec, mids)
+
+
+def _from_controller(
+    path: str, data: Any, transitions: int | None, failed: tuple[str, ...]
+) -> Source:
+    if not isinstance(data, dict):
+        raise InputError(
+            f"{path}: expected a controller (JSON object) or a states file (JSON list),"
+            f" got {type(data).__name__}"
+        )
+    try:
+        from bstool.controllers import load_controller
+    except ImportError:
+        raise InputError(
+            f"{path}: controller files need bstool.controllers, which this install lacks",
+            hint="simulate a states file instead: bstool simulate --states FILE",
+        ) from None
+    from bstool.sim.states import validate_states
+
+    ctrl = load_controller(path)
+    spec = RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k)
+    mids = [parse_module(f, spec.legs, spec.modules) for f in failed]
+    if transitions is None:
+        transitions = ctrl.max_trans if ctrl.max_trans is not None else DEFAULT_TRANSITIONS
+    states = ctrl.states(transitions, [str(m) for m in mids])
+    return Source(path, validate_states(states, spec, where=path), spec, mids)
+
+
+def _render(sim: Any, states: np.ndarray, path: str, quiet: bool) -> Any:
+    import sys
+
+    from tqdm import tqdm
+
+    from bstool.sim.video import frame_count, render_video
+
+    total = frame_count(sim, len(states) - 1)
+    with tqdm(
+        total=total,
+        desc="rendering",
+        unit="frame",
+        file=sys.stderr,
+        disable=quiet or not sys.stderr.isatty(),
+        leave=False,
+    ) as bar:
+
+        def advance(frames: int) -> None:
+            bar.update(frames)
+
+        return render_video(sim, states, path, progress=advance)

@@ -1,0 +1,39 @@
+"""``bstool states``: print a controller's reference state sequence as JSON (T+1 frames)."""
+
+from __future__ import annotations
+
+import click
+
+from bstool.controllers import load_controller
+
+DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS, used when the file has no max_trans
+
+
+@click.command("states")
+@click.argument("controller", type=click.Path(dir_okay=False))
+@click.option(
+    "-T",
+    "--transitions",
+    type=click.IntRange(min=0),
+    default=None,
+    help="Number of transitions T (default: the file's max_trans, else 30).",
+)
+@click.option(
+    "--fail",
+    "failed",
+    multiple=True,
+    metavar="L.M",
+    help="A failed module (leg.module, 0 = lead) that keeps its R^0 state; repeatable.",
+)
+def command(controller: str, transitions: int | None, failed: tuple[str, ...]) -> None:
+    """Print CONTROLLER's state sequence R^0..R^T: a JSON array of T+1 frames, each a list of
+    n legs of m module states (0..15). Every later stage is checked against this output."""
+    ctrl = load_controller(controller)
+    if transitions is None:
+        transitions = ctrl.max_trans if ctrl.max_trans is not None else DEFAULT_TRANSITIONS
+    frames = ctrl.states(transitions, failed)
+    lines = [
+        "[" + ",".join("[" + ",".join(str(s) for s in leg) + "]" for leg in frame) + "]"
+        for frame in frames.tolist()
+    ]
+    click.echo("[\n" + ",\n".join(lines) + "\n]")

@@ -1,0 +1,83 @@
+"""Evaluate on a Dask distributed cluster (optional extra ``bstool[cluster]``).
+
+Each task carries a batch of state sequences plus the evaluator *factory* (a small frozen
+dataclass); a worker thread builds the evaluator (the MuJoCo model) the first time it sees a
+factory and keeps it for every later task. Results come back in order, and fitness depends
+only on the sequence, so the cluster never changes a run's result.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from bstool.errors import InputError
+from bstool.evolve.fitness import Evaluator, EvaluatorFactory
+
+_LOCAL = threading.local()
+
+
+def evaluate_chunk(factory: EvaluatorFactory, chunk: np.ndarray) -> list[float]:
+    """Task body, run on a worker: build (once per worker thread) and evaluate."""
+    built: dict[Any, Evaluator] = getattr(_LOCAL, "built", None) or {}
+    _LOCAL.built = built
+    if factory not in built:
+        built[factory] = factory.build()
+    return [float(x) for x in built[factory](list(chunk))]
+
+
+class DaskEvaluator:
+    """An evaluator that spreads each batch over the cluster at ``address`` (or a Client)."""
+
+    def __init__(
+        self,
+        address: Any,
+        factory: EvaluatorFactory,
+        chunk: int | None = None,
+        timeout: float = 20.0,
+    ) -> None:
+        try:
+            from dask.distributed import Client
+        except ImportError:
+            raise InputError(
+                "--cluster needs Dask distributed, which is not installed",
+                hint="pip install 'bstool[cluster]'",
+            ) from None
+        if isinstance(address, Client):
+            self.client = address
+            self._own = False
+        else:
+            try:
+                self.client = Client(address, timeout=f"{timeout}s")
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise InputError(
+                    f"cannot connect to the Dask scheduler at {address}: {exc}",
+                    hint="start one with `dask scheduler` and workers with `dask worker ADDRESS`",
+                ) from None
+            self._own = True
+        self.factory = factory
+        self.chunk = chunk
+
+    def _chunk_size(self, count: int) -> int:
+        if self.chunk:
+            return self.chunk
+        threads = max(1, sum(self.client.nthreads().values()))
+        return max(1, math.ceil(count / (2 * threads)))  # two tasks per thread: some balance
+
+    def __call__(self, sequences: Sequence[np.ndarray]) -> list[float]:
+        if not sequences:
+            return []
+        arr = np.stack([np.asarray(s, dtype=np.uint8) for s in sequences])
+        size = self._chunk_size(len(arr))
+        chunks = [arr[i : i + size] for i in range(0, len(arr), size)]
+        futures = self.client.map(evaluate_chunk, [self.factory] * len(chunks), chunks, pure=False)
+        results = self.client.gather(futures)
+        return [x for part in results for x in part]
+
+    def close(self) -> None:
+        if self._own:
+            self.client.close()

@@ -1,0 +1,123 @@
+"""Figures of the experiments: Fig. 17 (mobility per failed module), Fig. 19 (distance against
+transition) and the multiple-failure curves. All written atomically as PNG (Agg backend)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bstool import fileio
+from bstool.experiments.mobility import FaultRun, SingleFaults, summarize
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+
+def _figure(width: float, height: float) -> Figure:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure as _Figure
+
+    return _Figure(figsize=(width, height), dpi=100)
+
+
+def _save(fig: Figure, path: str | os.PathLike[str]) -> None:
+    fig.tight_layout()
+    with fileio.atomic_open(path, "wb") as fh:
+        fig.savefig(fh, format="png")
+
+
+def plot_single_failures(
+    path: str | os.PathLike[str], results: Mapping[str, SingleFaults], title: str = ""
+) -> None:
+    """Grouped bars: M_D for each failed module L.M, one colour per controller (paper Fig. 17)."""
+    first = next(iter(results.values()))
+    labels = [str(r.failed[0]) for r in first.runs]
+    x = np.arange(len(labels))
+    fig = _figure(max(8.0, 0.32 * len(labels) * max(1, len(results)) ** 0.5), 4.2)
+    ax = fig.add_subplot()
+    width = 0.8 / len(results)
+    for idx, (name, res) in enumerate(results.items()):
+        values = np.nan_to_num(np.array([r.mobility for r in res.runs]), nan=0.0)
+        ax.bar(x + (idx - (len(results) - 1) / 2) * width, values, width, label=name)
+    ax.axhline(100, color="0.3", linewidth=0.8)
+    ax.axhline(80, color="0.6", linewidth=0.8, linestyle="--")
+    ax.set_xticks(x, labels, rotation=90, fontsize=7)
+    ax.set_xlabel("failed module (leg.module, 0 = lead)")
+    ax.set_ylabel("degree of mobility M_D (%)")
+    ax.set_title(title or "Degree of mobility under single module failure")
+    ax.legend(fontsize=8)
+    ax.grid(True, axis="y", linewidth=0.3)
+    _save(fig, path)
+
+
+def plot_multi_failures(
+    path: str | os.PathLike[str], curves: Mapping[str, Mapping[int, Sequence[FaultRun]]]
+) -> None:
+    """Median M_D (with the interquartile band) against the number of failed modules."""
+    fig = _figure(6.0, 4.2)
+    ax = fig.add_subplot()
+    for name, by_k in curves.items():
+        ks = sorted(by_k)
+        stats = [summarize(by_k[k]) for k in ks]
+        med = [s.get("median", np.nan) for s in stats]
+        ax.plot(ks, med, marker="o", label=name)
+        ax.fill_between(
+            ks, [s.get("q1", np.nan) for s in stats], [s.get("q3", np.nan) for s in stats],
+            alpha=0.2,
+        )  # fmt: skip
+    ax.axhline(100, color="0.3", linewidth=0.8)
+    ax.axhline(80, color="0.6", linewidth=0.8, linestyle="--")
+    ax.set_xlabel("failed modules K (random)")
+    ax.set_ylabel("M_D (%): median and quartiles")
+    ax.set_title("Mobility under multiple failures")
+    ax.legend(fontsize=8)
+    ax.grid(True, linewidth=0.3)
+    _save(fig, path)
+
+
+def plot_distance_curves(
+    path: str | os.PathLike[str],
+    curves: Mapping[str, np.ndarray],
+    max_trans: int | None = None,
+    title: str = "Distance against state transition",
+) -> None:
+    """Distance from the start after each transition (paper Fig. 19), in cm."""
+    fig = _figure(6.5, 4.2)
+    ax = fig.add_subplot()
+    for name, curve in curves.items():
+        ax.plot(np.arange(len(curve)), np.asarray(curve) * 100.0, label=name)
+    if max_trans:
+        ax.axvline(max_trans, color="0.5", linestyle="--", linewidth=0.8, label="MAX_TRANS")
+    ax.set_xlabel("state transition")
+    ax.set_ylabel("distance from start (cm)")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    ax.grid(True, linewidth=0.3)
+    _save(fig, path)
+
+
+def plot_fitness(path: str | os.PathLike[str], histories: Mapping[str, Sequence[object]]) -> None:
+    """Maximum (solid) and mean (dashed) fitness against generation, several runs overlaid
+    (paper Figs 7, 9–11, 15–16). Rows are ``HistoryRow``s (generation, best, mean, population);
+    co-evolution runs draw one pair of lines per population."""
+    fig = _figure(6.5, 4.2)
+    ax = fig.add_subplot()
+    for name, rows in histories.items():
+        populations = sorted({getattr(r, "population", "") for r in rows})
+        for pop in populations:
+            mine = [r for r in rows if getattr(r, "population", "") == pop]
+            gens = [getattr(r, "generation") for r in mine]  # noqa: B009
+            label = name if len(populations) == 1 else f"{name} [{pop}]"
+            (line,) = ax.plot(gens, [getattr(r, "best") * 100 for r in mine], label=label)  # noqa: B009
+            ax.plot(gens, [getattr(r, "mean") * 100 for r in mine], "--", color=line.get_color())  # noqa: B009
+    ax.set_xlabel("generation")
+    ax.set_ylabel("fitness: distance (cm); solid max, dashed mean")
+    ax.set_title("Fitness against generation")
+    ax.legend(fontsize=8)
+    ax.grid(True, linewidth=0.3)
+    _save(fig, path)

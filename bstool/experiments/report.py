@@ -1,0 +1,192 @@
+"""``bstool report``: one HTML page (PNGs beside it, no network needed) comparing controllers:
+fitness curves, paths, fault tolerance, extrapolation and the numbers, plus report.json."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import jinja2
+import numpy as np
+
+from bstool import __version__, fileio
+from bstool.errors import InputError
+from bstool.experiments import common
+from bstool.experiments.extrapolate import reinit_states
+from bstool.experiments.mobility import SingleFaults, distances_with, single_failures
+from bstool.experiments.paths import distance_curve, path_shape
+from bstool.experiments.robustness import rotation_spread
+
+Progress = Callable[[str], None]
+
+
+@dataclass
+class Entry:
+    name: str
+    loaded: common.Loaded
+    history: list[Any] | None
+
+
+def find_entries(inputs: Sequence[str]) -> list[Entry]:
+    """Each input is an evolve run directory (best.json, history.csv) or a controller file."""
+    from bstool.evolve.checkpoint import read_history
+
+    entries: list[Entry] = []
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            best = p / "best.json"
+            if not best.exists():
+                raise InputError(
+                    f"{p} has no best.json", hint="give `bstool evolve --out` directories"
+                )
+            history = read_history(p / "history.csv") if (p / "history.csv").exists() else None
+            entries.append(Entry(p.name, common.load(str(best)), history))
+        elif p.exists():
+            entries.append(Entry(p.stem, common.load(str(p)), None))
+        else:
+            raise InputError(f"no such run directory or controller file: {p}")
+    names = [e.name for e in entries]
+    for e in entries:  # disambiguate equal names (e.g. several runs/best.json)
+        if names.count(e.name) > 1:
+            e.name = f"{e.name} ({Path(e.loaded.path).parent})"
+    return entries
+
+
+def build_report(
+    inputs: Sequence[str],
+    out_dir: str | os.PathLike[str],
+    transitions: int = 30,
+    extrapolate: int = 120,
+    workers: int | None = None,
+    progress: Progress | None = None,
+) -> Path:
+    """Run every experiment for every input and write ``out_dir/index.html`` (atomically: the
+    whole directory appears at once)."""
+    from bstool.experiments import plots
+    from bstool.sim.batch import BatchEvaluator
+    from bstool.sim.plot import plot_paths
+
+    entries = find_entries(inputs)
+    if not entries:
+        raise InputError("nothing to report", hint="give run directories or controller files")
+    say = progress or (lambda _msg: None)
+    out = Path(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        rows: list[dict[str, Any]] = []
+        faults: dict[str, SingleFaults] = {}
+        runs = []
+        for e in entries:
+            c = e.loaded.controller
+            with BatchEvaluator(e.loaded.spec, workers=workers) as ev:
+                evaluate = distances_with(ev)
+                say(f"{e.name}: path and extrapolation")
+                plain, reinit = ev.evaluate(
+                    [c.states(extrapolate), reinit_states(c, extrapolate, transitions)]
+                )
+                base = ev.evaluate([c.states(transitions)])[0]
+                say(f"{e.name}: {c.legs * c.modules} single failures")
+                f = single_failures(c, evaluate, transitions)
+                say(f"{e.name}: leg rotations")
+                spread = rotation_spread(c, evaluate, transitions)
+            faults[e.name] = f
+            runs.append((e.name, base))
+            curves = {"plain": distance_curve(plain.path), "reinit": distance_curve(reinit.path)}
+            ext_png = f"extrapolate-{len(rows)}.png"
+            plots.plot_distance_curves(
+                tmp / ext_png,
+                {"plain": curves["plain"], f"re-init every {transitions}": curves["reinit"]},
+                transitions,
+                title=f"{e.name}: distance against transition",
+            )
+            mobility = np.array([r.mobility for r in f.runs], dtype=float)
+            rows.append(
+                {
+                    "name": e.name,
+                    "model": c.model,
+                    "path": str(e.loaded.path),
+                    "fitness": c.fitness,
+                    "distance": base.distance,
+                    "shape": path_shape(base.path).to_json(),
+                    "faults": f.to_json(),
+                    "mean_mobility": float(np.nanmean(mobility)) if mobility.size else 0.0,
+                    "extrapolation": {k: v.tolist() for k, v in curves.items()},
+                    "extrapolation_figure": ext_png,
+                    "rotation": spread.to_json(),
+                    "history": [vars(r) for r in e.history] if e.history else None,
+                }
+            )
+        say("figures")
+        figures: dict[str, str | None] = {"paths": "paths.png", "faults": "faults.png"}
+        plot_paths(tmp / "paths.png", runs, title="Disc paths")
+        plots.plot_single_failures(tmp / "faults.png", faults)
+        histories = {e.name: e.history for e in entries if e.history}
+        figures["fitness"] = None
+        if histories:
+            plots.plot_fitness(tmp / "fitness.png", histories)
+            figures["fitness"] = "fitness.png"
+        models = _by_model(rows)
+        context = {
+            "title": "bstool report: brittle star controllers",
+            "version": __version__,
+            "transitions": transitions,
+            "extrapolate": extrapolate,
+            "entries": rows,
+            "models": models,
+            "figures": figures,
+        }
+        fileio.write_text(tmp / "index.html", _render(context))
+        fileio.write_json(tmp / "report.json", {k: v for k, v in context.items()})
+        _replace_dir(tmp, out)
+    except BaseException:
+        import shutil
+
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out / "index.html"
+
+
+def _by_model(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    out = []
+    for model in sorted({r["model"] for r in rows}):
+        mine = [r for r in rows if r["model"] == model]
+        out.append(
+            {
+                "model": model,
+                "runs": len(mine),
+                "mean_distance": float(np.mean([r["distance"] for r in mine])),
+                "best_distance": float(np.max([r["distance"] for r in mine])),
+                "mean_keep_80": float(np.mean([r["faults"]["keep_80"] for r in mine])),
+            }
+        )
+    return out
+
+
+def _render(context: dict[str, Any]) -> str:
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("bstool", "data"),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+        keep_trailing_newline=True,
+    )
+    return env.get_template("report.html.j2").render(**context)
+
+
+def _replace_dir(new: Path, target: Path) -> None:
+    """Put ``new`` where ``target`` is; an old report is removed only once the new one exists."""
+    import shutil
+
+    if target.exists():
+        old = target.with_name(f".{target.name}.old")
+        shutil.rmtree(old, ignore_errors=True)
+        os.replace(target, old)
+        os.replace(new, target)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(new, target)

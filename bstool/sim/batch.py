@@ -1,0 +1,192 @@
+"""Evaluate many state sequences: one model, one MjData per worker thread, reused across calls.
+
+``mj_step`` releases the GIL, so threads run physics in parallel without copying the model into
+other processes. ``mujoco.rollout`` (nthread) is available as ``method="rollout"`` for
+comparison; bench/simulator.py measures both and the faster one on this machine is the default
+(docs/robot.md, "Batches"). All methods give results bit-identical to :class:`Simulator.run`,
+because every run starts from a fully reset MjData (zero warm start).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Literal
+
+import mujoco
+import numpy as np
+
+from bstool.errors import InputError
+from bstool.robot import RobotSpec
+from bstool.sim.simulator import SimResult, Simulator
+from bstool.sim.states import validate_states
+
+Method = Literal["threads", "rollout", "sequential"]
+DEFAULT_METHOD: Method = "threads"
+# rollout returns the full state at every step; cap one call's output at about this many bytes.
+_ROLLOUT_BYTES = 64 * 2**20
+
+
+def default_workers() -> int:
+    """CPUs this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+class BatchEvaluator:
+    """Build the model once; evaluate populations again and again.
+
+    >>> with BatchEvaluator(RobotSpec(), workers=2) as ev:   # doctest: +SKIP
+    ...     results = ev.evaluate([states_a, states_b])
+    """
+
+    def __init__(
+        self,
+        spec: RobotSpec | None = None,
+        workers: int | None = None,
+        method: Method = DEFAULT_METHOD,
+        transition_time: float | None = None,
+        settle_time: float | None = None,
+    ) -> None:
+        if method not in ("threads", "rollout", "sequential"):
+            raise InputError(
+                f"unknown batch method {method!r}", hint="use threads, rollout or sequential"
+            )
+        self.sim = Simulator(spec, transition_time=transition_time, settle_time=settle_time)
+        self.spec = self.sim.spec
+        self.workers = default_workers() if workers is None else int(workers)
+        if self.workers < 1:
+            raise InputError(f"workers must be >= 1 (got {workers})")
+        self.method: Method = method
+        self._datas = [self.sim.data] + [
+            mujoco.MjData(self.sim.model) for _ in range(self.workers - 1)
+        ]
+        self._pool: ThreadPoolExecutor | None = None
+
+    # -- public ----------------------------------------------------------------------------
+    def evaluate(
+        self,
+        states_list: Sequence[Any],
+        progress: Callable[[int], None] | None = None,
+    ) -> list[SimResult]:
+        """One :class:`SimResult` per state sequence, in order. ``progress(k)`` is called
+        with the number of newly finished evaluations (from worker threads)."""
+        arrays = [
+            validate_states(s, self.spec, where=f"states[{i}]") for i, s in enumerate(states_list)
+        ]
+        if not arrays:
+            return []
+        if self.method == "sequential" or (self.method == "threads" and self.workers == 1):
+            return self._sequential(arrays, progress)
+        if self.method == "threads":
+            return self._threads(arrays, progress)
+        return self._rollout(arrays, progress)
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def __enter__(self) -> BatchEvaluator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- methods ---------------------------------------------------------------------------
+    def _sequential(
+        self, arrays: list[np.ndarray], progress: Callable[[int], None] | None
+    ) -> list[SimResult]:
+        out = []
+        for states in arrays:
+            out.append(self.sim.run_validated(states, self._datas[0]))
+            if progress:
+                progress(1)
+        return out
+
+    def _threads(
+        self, arrays: list[np.ndarray], progress: Callable[[int], None] | None
+    ) -> list[SimResult]:
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="bstool-sim")
+        results: list[SimResult | None] = [None] * len(arrays)
+        lock = threading.Lock()
+        next_index = [0]
+
+        def worker(data: mujoco.MjData) -> None:
+            while True:
+                with lock:
+                    i = next_index[0]
+                    next_index[0] += 1
+                if i >= len(arrays):
+                    return
+                results[i] = self.sim.run_validated(arrays[i], data)
+                if progress:
+                    progress(1)
+
+        n = min(self.workers, len(arrays))
+        futures = [self._pool.submit(worker, self._datas[w]) for w in range(n)]
+        for f in futures:
+            f.result()
+        return [r for r in results if r is not None]
+
+    def _rollout(
+        self, arrays: list[np.ndarray], progress: Callable[[int], None] | None
+    ) -> list[SimResult]:
+        from mujoco import rollout
+
+        sim, model = self.sim, self.sim.model
+        out: list[SimResult] = []
+        # Group equal lengths: one rollout call needs one nstep.
+        by_len: dict[int, list[int]] = {}
+        for i, a in enumerate(arrays):
+            by_len.setdefault(len(a), []).append(i)
+        results: list[SimResult | None] = [None] * len(arrays)
+        spec_full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        nstate = mujoco.mj_stateSize(model, spec_full)
+        qpos_at = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_TIME)  # time comes first
+        data0 = self._datas[0]
+        sim.reset(data0)
+        init = np.empty(nstate)
+        mujoco.mj_getState(model, data0, init, spec_full)
+        for frames, idx in by_len.items():
+            transitions = frames - 1
+            nstep = sim.steps_for(transitions)
+            per_run = nstep * (nstate + model.nu) * 8
+            chunk = max(1, min(len(idx), _ROLLOUT_BYTES // per_run))
+            ends = sim.settle_steps - 1 + sim.steps_per_transition * np.arange(frames)
+            reps = np.array([sim.settle_steps] + [sim.steps_per_transition] * transitions)
+            for start in range(0, len(idx), chunk):
+                part = idx[start : start + chunk]
+                control = np.stack([np.repeat(sim.angles(arrays[i]), reps, axis=0) for i in part])
+                state, _ = rollout.rollout(
+                    model,
+                    self._datas,
+                    np.tile(init, (len(part), 1)),
+                    control,
+                    nstep=nstep,
+                    initial_warmstart=np.zeros((len(part), model.nv)),
+                )
+                for k, i in enumerate(part):
+                    results[i] = SimResult(state[k, ends, qpos_at : qpos_at + 2].copy())
+                if progress:
+                    progress(len(part))
+        out = [r for r in results if r is not None]
+        return out
+
+
+def evaluate_batch(
+    spec: RobotSpec | None,
+    states_list: Sequence[Any],
+    workers: int | None = None,
+    method: Method = DEFAULT_METHOD,
+    transition_time: float | None = None,
+    settle_time: float | None = None,
+) -> list[SimResult]:
+    """One-shot convenience; for repeated calls keep a :class:`BatchEvaluator`."""
+    with BatchEvaluator(spec, workers, method, transition_time, settle_time) as ev:
+        return ev.evaluate(states_list)

@@ -1,0 +1,172 @@
+"""``bstool simulate``: outputs (text, JSON, PNG, MP4) and clear errors for bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bstool.cli import main
+from bstool.moduleid import ModuleId
+from bstool.sim import Simulator, hold_failed
+
+
+def _states(seed: int = 0, transitions: int = 2) -> list:  # type: ignore[type-arg]
+    rng = np.random.default_rng(seed)
+    return rng.integers(0, 16, (transitions + 1, 5, 6)).tolist()  # type: ignore[no-any-return]
+
+
+def _write(tmp_path: Path, obj: object, name: str = "states.json") -> Path:
+    p = tmp_path / name
+    p.write_text(json.dumps(obj))
+    return p
+
+
+def _run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(args)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_json_output_matches_the_simulator(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    states = _states()
+    code, out, _ = _run(["simulate", "--states", str(_write(tmp_path, states)), "--json"], capsys)
+    assert code == 0
+    obj = json.loads(out)
+    expected = Simulator().run(np.array(states))
+    assert obj["path"] == expected.path.tolist()  # JSON floats round-trip exactly
+    assert obj["displacement"] == list(expected.displacement)
+    assert obj["distance"] == expected.distance
+    assert obj["transitions"] == 2 and obj["units"] == "m" and obj["failed"] == []
+
+
+def test_states_file_as_argument_with_T_and_fail(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    states = _states(1, 3)
+    path = _write(tmp_path, states)
+    code, out, _ = _run(["simulate", str(path), "-T", "2", "--fail", "1.2", "--json"], capsys)
+    assert code == 0
+    obj = json.loads(out)
+    held = hold_failed(np.array(states)[:3], [ModuleId(1, 2)])
+    assert obj["path"] == Simulator().run(held).path.tolist()
+    assert obj["failed"] == ["1.2"] and len(obj["path"]) == 3
+
+
+def test_builtin_example_text_output(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = _run(["simulate", "-T", "2"], capsys)
+    assert code == 0
+    assert "built-in example" in out and "distance:" in out and "displacement:" in out
+
+
+def test_plot_is_a_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import matplotlib.image
+
+    png = tmp_path / "path.png"
+    code, _, _ = _run(["simulate", "-T", "2", "--plot", str(png)], capsys)
+    assert code == 0
+    image = matplotlib.image.imread(png)
+    assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
+
+
+@pytest.mark.slow
+def test_video_is_an_mp4(tmp_path: Path) -> None:
+    """Runs in a subprocess: MUJOCO_GL must be chosen before mujoco is imported, and this
+    test process has imported it already."""
+    import imageio.v3 as iio
+
+    mp4 = tmp_path / "run.mp4"
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("DISPLAY", "WAYLAND_DISPLAY", "MUJOCO_GL", "PYOPENGL_PLATFORM")
+    }
+    proc = subprocess.run(
+        [sys.executable, "-m", "bstool", "simulate", "-T", "1", "--video", str(mp4), "-q"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr and "ctypes" not in proc.stderr
+    frames = iio.imread(mp4)
+    # settle + 1 transition = 2 × 0.475 s at 25 frames/s
+    assert frames.shape == (23, 272, 480, 3)
+    assert frames.std() > 10  # not a blank picture
+
+
+def test_view_without_display_is_a_clear_error(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    code, _, err = _run(["simulate", "-T", "1", "--view"], capsys)
+    assert code != 0 and "needs a display" in err and "--video" in err
+
+
+@pytest.mark.parametrize(
+    ("content", "args", "message"),
+    [
+        (None, [], "states file not found"),
+        ("[[[0, 1]", [], "malformed JSON"),
+        ([[[0] * 6] * 4] * 2, [], "wrong robot shape"),
+        ([[[0] * 5] * 5] * 2, [], "wrong robot shape"),
+        ([[[0] * 6] * 4 + [[0] * 5 + [16]]] * 2, [], "state 16 at frame 0, leg 4, module 5"),
+        ([[[0] * 6] * 5] * 2, ["--fail", "5.0"], "unknown module 5.0"),
+        ([[[0] * 6] * 5] * 2, ["--fail", "0.6"], "unknown module 0.6"),
+        ([[[0] * 6] * 5] * 2, ["--fail", "x"], "bad module address"),
+        ([[[0] * 6] * 5] * 2, ["-T", "5"], "cannot run 5 transitions"),
+        ({"format": "nonsense"}, [], ""),
+    ],
+)
+def test_bad_input_is_a_clear_error(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    content: object,
+    args: list[str],
+    message: str,
+) -> None:
+    path = tmp_path / "in.json"
+    if isinstance(content, str):
+        path.write_text(content)
+    elif content is not None:
+        path.write_text(json.dumps(content))
+    flag = ["--states"] if not isinstance(content, dict) else []
+    code, out, err = _run(["simulate", *flag, str(path), *args], capsys)
+    assert code != 0
+    assert err.startswith("Error: ") and message in err
+    assert "Traceback" not in err + out
+
+
+def test_controller_and_states_together_is_an_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(tmp_path, _states())
+    code, _, err = _run(["simulate", str(path), "--states", str(path)], capsys)
+    assert code != 0 and "not both" in err
+
+
+def test_controller_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A bstool.controller/1 file runs through controllers.load_controller(...).states()."""
+    controllers = pytest.importorskip("bstool.controllers")
+    if not hasattr(controllers, "make_controller"):
+        pytest.skip("bstool.controllers has no make_controller yet")
+    rng = np.random.default_rng(2)
+    ctrl = controllers.make_controller(
+        "ca1d", rng.integers(0, 16, (5, 6)), rule=rng.integers(0, 16, 4096), max_trans=2
+    )
+    path = tmp_path / "best.json"
+    controllers.save_controller(ctrl, path)
+    code, out, err = _run(["simulate", str(path), "--fail", "0.0", "--json"], capsys)
+    assert code == 0, err
+    obj = json.loads(out)
+    states = controllers.load_controller(path).states(2, ["0.0"])
+    assert obj["path"] == Simulator().run(states).path.tolist()
