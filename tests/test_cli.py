@@ -58,3 +58,13 @@ def test_atomic_write_keeps_old_file_on_failure(tmp_path) -> None:  # type: igno
         raise RuntimeError("killed")
     assert json.loads(target.read_text()) == {"x": 1}
     assert [p.name for p in tmp_path.iterdir()] == ["out.json"]
+
+
+def test_atomic_write_uses_normal_permissions(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import os
+
+    target = tmp_path / "out.txt"
+    fileio.write_text(target, "x")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert target.stat().st_mode & 0o777 == 0o666 & ~mask

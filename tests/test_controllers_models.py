@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import zlib
 
 import numpy as np
 import pytest
@@ -170,7 +171,7 @@ def test_nn_failures() -> None:
 @pytest.mark.parametrize("shape", [(5, 6), (3, 4), (1, 2), (2, 1)])
 def test_vectorised_equals_reference(model: str, shape: tuple[int, int]) -> None:
     n, m = shape
-    rng = np.random.default_rng(hash((model, shape)) % 2**32)
+    rng = np.random.default_rng(zlib.crc32(f"{model}{shape}".encode()))
     p, t = 6, 25
     for failed in ([], [(0, 0)], [(n - 1, m - 1), (0, min(1, m - 1))]):
         if model.startswith("nn"):

@@ -115,3 +115,17 @@ def test_hold_failed_keeps_r0() -> None:
     mask = np.ones((5, 6), bool)
     mask[2, 3] = mask[0, 0] = False
     assert (held[:, mask] == states[:, mask]).all()
+
+
+def test_headless_gl_choice(monkeypatch: pytest.MonkeyPatch) -> None:
+    from bstool.sim.gl import configure_headless_gl
+
+    for var in ("MUJOCO_GL", "PYOPENGL_PLATFORM", "DISPLAY", "WAYLAND_DISPLAY"):
+        monkeypatch.setenv(var, "x")  # records the original value, restored after the test
+        monkeypatch.delenv(var)
+    assert configure_headless_gl() == "osmesa"  # no display, nothing configured: OSMesa
+    monkeypatch.setenv("MUJOCO_GL", "egl")
+    assert configure_headless_gl() == "egl"  # an explicit choice is kept
+    monkeypatch.delenv("MUJOCO_GL")
+    monkeypatch.setenv("DISPLAY", ":0")
+    assert configure_headless_gl() == "glfw"  # a display: MuJoCo's default

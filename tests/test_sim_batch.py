@@ -47,3 +47,23 @@ def test_bad_arguments() -> None:
         pytest.raises(InputError, match=r"states\[1\]: wrong robot shape"),
     ):
         ev.evaluate([np.zeros((2, 5, 6), int), np.zeros((2, 5, 5), int)])
+
+
+def test_an_exception_in_progress_stops_every_worker() -> None:
+    """evolve stops a batch on Ctrl-C by raising from the progress callback."""
+
+    class Stop(Exception):
+        pass
+
+    calls: list[int] = []
+
+    def progress(k: int) -> None:
+        calls.append(k)
+        raise Stop
+
+    pop = [np.zeros((2, 5, 6), int)] * 6
+    with BatchEvaluator(workers=2, transition_time=0.05, settle_time=0.05) as ev:
+        with pytest.raises(Stop):
+            ev.evaluate(pop, progress=progress)
+        assert len(calls) <= 2  # each worker stopped after its first run
+        assert len(ev.evaluate(pop[:2])) == 2  # and the evaluator still works

@@ -61,9 +61,20 @@ def test_states_file_as_argument_with_T_and_fail(
 
 
 def test_builtin_example_text_output(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = _run(["simulate", "-T", "2"], capsys)
+    code, out, _ = _run(["simulate", "--example", "-T", "2"], capsys)
     assert code == 0
     assert "built-in example" in out and "distance:" in out and "displacement:" in out
+
+
+@pytest.mark.parametrize("model", ["nnsin", "ca2ddiff"])
+def test_builtin_evolved_controllers_replay_their_fitness(
+    model: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from bstool.builtin import builtin_controller
+
+    code, out, _ = _run(["simulate", "--model", model, "--json"], capsys)
+    fitness = json.loads(builtin_controller(model).read_text())["fitness"]
+    assert code == 0 and json.loads(out)["distance"] == fitness
 
 
 def test_plot_is_a_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -98,8 +109,8 @@ def test_video_is_an_mp4(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr and "ctypes" not in proc.stderr
     frames = iio.imread(mp4)
-    # settle + 1 transition = 2 × 0.475 s at 25 frames/s
-    assert frames.shape == (23, 272, 480, 3)
+    # a frame every 20 steps (25 frames/s at 2 ms) over settle + 1 transition
+    assert frames.shape == (Simulator().steps_for(1) // 20, 272, 480, 3)
     assert frames.std() > 10  # not a blank picture
 
 
@@ -110,6 +121,10 @@ def test_view_without_display_is_a_clear_error(
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     code, _, err = _run(["simulate", "-T", "1", "--view"], capsys)
     assert code != 0 and "needs a display" in err and "--video" in err
+    monkeypatch.setenv("DISPLAY", ":987")  # configured, but no such X server
+    code, out, err = _run(["simulate", "-T", "1", "--view"], capsys)
+    assert code != 0 and "cannot open the display ':987'" in err and "Traceback" not in err
+    assert out == ""  # checked before simulating
 
 
 @pytest.mark.parametrize(
@@ -170,3 +185,15 @@ def test_controller_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     obj = json.loads(out)
     states = controllers.load_controller(path).states(2, ["0.0"])
     assert obj["path"] == Simulator().run(states).path.tolist()
+
+
+def test_states_from_stdin(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import io
+
+    states = _states(3, 1)
+    monkeypatch.setattr("sys.stdin", io.StringIO(json.dumps(states)))
+    code, out, _ = _run(["simulate", "--states", "-", "--json"], capsys)
+    assert code == 0
+    assert json.loads(out)["path"] == Simulator().run(np.array(states)).path.tolist()

@@ -15,6 +15,7 @@ import click
 import numpy as np
 
 from bstool import fileio
+from bstool.builtin import DEFAULT_MODEL, MODELS
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
 from bstool.robot import RobotSpec
@@ -37,7 +38,8 @@ class Source:
     "--states",
     "states_file",
     type=click.Path(dir_okay=False),
-    help="A states file (JSON list of T+1 frames of n lists of m ints) instead of a controller.",
+    help="A states file (JSON list of T+1 frames of n lists of m ints; '-' = stdin) instead"
+    " of a controller.",
 )
 @click.option(
     "-T",
@@ -74,6 +76,16 @@ class Source:
     show_default=True,
     help="Recorded in the output; the simulation itself has no randomness.",
 )
+@click.option(
+    "--model",
+    type=click.Choice(MODELS),
+    default=DEFAULT_MODEL,
+    show_default=True,
+    help="Without CONTROLLER: which shipped evolved controller to run.",
+)
+@click.option(
+    "--example", is_flag=True, help="Without CONTROLLER: run the hand-made travelling wave."
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(
     controller: str | None,
@@ -86,11 +98,13 @@ def command(
     video: str | None,
     view: bool,
     seed: int,
+    model: str,
+    example: bool,
     quiet: bool,
 ) -> None:
     """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
-    print the disc's displacement and distance (paper eq. 6). Without either, run the built-in
-    example gait."""
+    print the disc's displacement and distance (paper eq. 6). Without either, run a shipped
+    evolved controller (--model; --example for a hand-made wave)."""
     if video:
         from bstool.sim.gl import configure_headless_gl
 
@@ -100,7 +114,7 @@ def command(
 
         require_display()  # fail before simulating
 
-    source = _load_source(controller, states_file, transitions, failed)
+    source = _load_source(controller, states_file, transitions, failed, model, example)
 
     from bstool.sim.simulator import Simulator
 
@@ -111,7 +125,10 @@ def command(
         from bstool.sim.plot import plot_paths
 
         name = "example" if controller is None and states_file is None else Path(source.label).name
-        plot_paths(plot, [(name, result)], title="Disc path (paper Fig. 18 style)")
+        try:
+            plot_paths(plot, [(name, result)], title="Disc displacement")
+        except OSError as exc:
+            raise InputError(f"cannot write the plot {plot}: {exc}") from None
 
     out = result.to_json()
     out.update(
@@ -151,6 +168,8 @@ def _load_source(
     states_file: str | None,
     transitions: int | None,
     failed: tuple[str, ...],
+    model: str = "nnsin",
+    example: bool = False,
 ) -> Source:
     if controller and states_file:
         raise InputError(
@@ -162,12 +181,24 @@ def _load_source(
         if isinstance(data, list):  # a states file given as the argument
             return _from_states(data, controller, transitions, failed)
         return _from_controller(controller, data, transitions, failed)
+    if states_file == "-":  # e.g. bstool states best.json | bstool simulate --states -
+        try:
+            data = json.loads(click.get_text_stream("stdin").read())
+        except json.JSONDecodeError as exc:
+            raise InputError(
+                f"<stdin>:{exc.lineno}:{exc.colno}: malformed JSON in states: {exc.msg}"
+            ) from None
+        return _from_states(data, "<stdin>", transitions, failed)
     if states_file:
         data = fileio.read_json(states_file, "states file")
         return _from_states(data, states_file, transitions, failed)
-    example = resources.files("bstool") / "data" / EXAMPLE
-    data = json.loads(example.read_text(encoding="utf-8"))
-    return _from_states(data, f"built-in example ({EXAMPLE})", transitions, failed)
+    if example:
+        data = json.loads((resources.files("bstool") / "data" / EXAMPLE).read_text("utf-8"))
+        return _from_states(data, f"built-in example ({EXAMPLE})", transitions, failed)
+    from bstool.builtin import builtin_controller
+
+    path = builtin_controller(model)
+    return _from_controller(str(path), fileio.read_json(path), transitions, failed)
 
 
 def _from_states(data: Any, label: str, transitions: int | None, failed: tuple[str, ...]) -> Source:
@@ -233,4 +264,7 @@ def _render(sim: Any, states: np.ndarray, path: str, quiet: bool) -> Any:
         def advance(frames: int) -> None:
             bar.update(frames)
 
-        return render_video(sim, states, path, progress=advance)
+        try:
+            return render_video(sim, states, path, progress=advance)
+        except OSError as exc:
+            raise InputError(f"cannot write the video {path}: {exc}") from None

@@ -302,9 +302,11 @@ class _Validator:
         return int(value)
 
     def grid(self, where: str, value: Any, shape: tuple[int, ...], lo: int, hi: int) -> IntArray:
-        """A nested list of ints of exactly ``shape`` with values lo..hi."""
+        """A nested list of ints of exactly ``shape`` with values lo..hi (read-only array)."""
         self._check(where, value, shape, lo, hi)
-        return np.array(value, dtype=np.int64).reshape(shape)
+        arr = np.array(value, dtype=np.int64).reshape(shape)
+        arr.setflags(write=False)
+        return arr
 
     def _check(self, where: str, value: Any, shape: tuple[int, ...], lo: int, hi: int) -> None:
         dims = "×".join(str(d) for d in shape)

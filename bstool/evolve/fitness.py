@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -131,9 +132,33 @@ class PhysicsFitness:
                 hint="use --fitness toy to try the pipeline without physics",
             ) from None
         spec = RobotSpec(legs=self.legs, modules=self.modules)
-        runner = batch.BatchEvaluator(spec, workers=self.workers)
+        return PhysicsEvaluator(batch.BatchEvaluator(spec, workers=self.workers))
 
-        def evaluate(seqs: Sequence[np.ndarray]) -> list[float]:
-            return [float(r.distance) for r in runner.evaluate(list(seqs))]
 
-        return evaluate
+class _Stop(Exception):
+    """Raised in a worker thread's progress callback to end its batch early."""
+
+
+class PhysicsEvaluator:
+    """Distances from a ``BatchEvaluator``; Ctrl-C stops the worker threads after their
+    current run instead of letting them finish the whole batch."""
+
+    def __init__(self, runner: Any) -> None:
+        self.runner = runner
+        self._stop = threading.Event()
+
+    def _progress(self, _count: int) -> None:
+        if self._stop.is_set():
+            raise _Stop
+
+    def __call__(self, sequences: Sequence[np.ndarray]) -> list[float]:
+        self._stop.clear()
+        try:
+            results = self.runner.evaluate(list(sequences), progress=self._progress)
+        except KeyboardInterrupt:
+            self._stop.set()
+            raise
+        return [float(r.distance) for r in results]
+
+    def close(self) -> None:
+        self.runner.close()

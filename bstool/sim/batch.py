@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any, Literal
 
 import mujoco
@@ -116,22 +116,28 @@ class BatchEvaluator:
         results: list[SimResult | None] = [None] * len(arrays)
         lock = threading.Lock()
         next_index = [0]
+        stop = threading.Event()  # one worker failed (or progress raised): the others stop too
 
         def worker(data: mujoco.MjData) -> None:
-            while True:
-                with lock:
-                    i = next_index[0]
-                    next_index[0] += 1
-                if i >= len(arrays):
-                    return
-                results[i] = self.sim.run_validated(arrays[i], data)
-                if progress:
-                    progress(1)
+            try:
+                while not stop.is_set():
+                    with lock:
+                        i = next_index[0]
+                        next_index[0] += 1
+                    if i >= len(arrays):
+                        return
+                    results[i] = self.sim.run_validated(arrays[i], data)
+                    if progress:
+                        progress(1)
+            except BaseException:
+                stop.set()
+                raise
 
         n = min(self.workers, len(arrays))
         futures = [self._pool.submit(worker, self._datas[w]) for w in range(n)]
+        wait(futures)  # never return while a worker still uses its MjData
         for f in futures:
-            f.result()
+            f.result()  # re-raise the first failure
         return [r for r in results if r is not None]
 
     def _rollout(

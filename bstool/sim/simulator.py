@@ -22,7 +22,7 @@ from bstool.robot import RobotSpec, build_model, state_to_angle
 from bstool.sim.states import validate_states
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SimResult:
     """Disc-centre path per transition (metres), displacement and distance (paper eq. 6)."""
 
@@ -51,7 +51,11 @@ class SimResult:
 
 
 class Simulator:
-    """Plays state sequences on one robot model; one MjData, reset fully before each run."""
+    """Plays state sequences on one robot model; one MjData, reset fully before each run.
+
+    ``run`` uses the simulator's own MjData: one thread at a time. For parallel runs use
+    ``bstool.sim.batch.BatchEvaluator`` (or ``run_validated`` with an MjData per thread).
+    """
 
     def __init__(
         self,

@@ -19,6 +19,7 @@ def require_display() -> None:
             " not set)",
             hint="render offscreen instead with --video FILE.mp4, or run where a display exists",
         )
+    _check_glfw()
 
 
 def view_run(sim: Simulator, states: np.ndarray) -> None:
@@ -51,6 +52,27 @@ def view_run(sim: Simulator, states: np.ndarray) -> None:
             return
         while viewer.is_running():
             time.sleep(0.05)
+
+
+def _check_glfw() -> None:
+    """The viewer exits the process when GLFW cannot start: find out first, quietly."""
+    import os
+    import warnings
+
+    try:
+        import glfw
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ok = bool(glfw.init())
+    except Exception:
+        ok = False
+    if not ok:
+        where = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+        raise InputError(
+            f"--view cannot open the display {where!r} (GLFW failed to initialise)",
+            hint="check the display (X forwarding, xhost), or render with --video FILE.mp4",
+        )
 
 
 class _Closed(Exception):

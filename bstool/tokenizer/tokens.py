@@ -183,3 +183,89 @@ def constant_item_bits(value: int) -> int:
     n = max(value.bit_length() - 1, 0)
     exact = value == 0 or value == 1 << n
     return 1 + ITEM_BITS + 1 + (0 if exact else n)
+
+
+# ---- additions for the PBASIC 2.5 tokenizer (names above are stable; only add below) -------
+CODE_START_BITS = ADDRESS_BITS  # bits 0-13: start address; then one return slot per GOSUB
+LOOKDOWN_DEFAULT_COMPARE = LookdownCompare.EQ
+EXPRESSION_STACK_DEPTH = 8  # run-time evaluation stack of the BS2sx
+EXPRESSION_BUFFER_BITS = 496  # one argument expression may hold fewer bits than this
+DEBUGIN_FLAG = 1  # DEBUGIN pushes 1 (no timeout) like a SERIN without labels
+DTMF_DEFAULT_ON_MS = 200
+DTMF_DEFAULT_OFF_MS = 50
+SHIFT_DEFAULT_BITS = 8
+XOUT_DEFAULT_CYCLES = 2
+X10_KEY_BASE = 16  # XOUT encodes house\key as house // 16 + key * 16
+LABEL_CONSTANT_PREFIX = 0xDD  # 1 + item $2E + flag 1: a 14-bit code address pushed as data
+LABEL_CONSTANT_PREFIX_BITS = 8
+SERIAL_ITEM_STRING = 0x0200  # STR var: OR-ed into the byte-variable index
+SERIAL_ITEM_REPEAT = 0x0400  # REP value\count (output) / SKIP n (input)
+SERIAL_ITEM_WAITSTR = 0x0800  # WAITSTR var (input); | 0x0200 when a length follows
+SERIAL_ITEM_WAIT = 0x0C44  # WAIT(...) (input), followed by the count of values
+SERIAL_STRING_DEFAULT = 32  # STR/WAITSTR without a length
+SERIAL_INDICATED = 0x0800  # formatter flag: print the $ / % indicator (HEX?, BIN?)
+ASCII_QUOTE = 0x22
+ASCII_CR = 13
+
+
+def number_formatter(
+    base: str, digits: int | None = None, *, signed: bool = False, indicated: bool = False
+) -> int:
+    """Formatter word of DEC/HEX/BIN (with optional digit count, S and I prefixes).
+
+    Layout: $100 always, $200 fixed digit count, $400 signed, $800 indicated, bits 4-7 hold
+    16 minus the digit count (the maximum when none is given), bits 0-3 the base code.
+    """
+    base_code, max_digits = {"DEC": (0x6, 5), "HEX": (0x0, 4), "BIN": (0xE, 16)}[base]
+    count = max_digits if digits is None else digits
+    word = 0x100 | ((16 - count) & 0xF) << 4 | base_code
+    if digits is not None:
+        word |= 0x200
+    if signed:
+        word |= 0x400
+    if indicated:
+        word |= 0x800
+    return word
+
+
+def _formatters() -> dict[str, int]:
+    table: dict[str, int] = {}
+    for base, max_digits, prefixes in (
+        ("DEC", 5, ("", "S")),
+        ("HEX", 4, ("", "S", "I", "IS")),
+        ("BIN", 16, ("", "S", "I", "IS")),
+    ):
+        for prefix in prefixes:
+            for digits in (None, *range(1, max_digits + 1)):
+                name = f"{prefix}{base}{'' if digits is None else digits}"
+                table[name] = number_formatter(
+                    base, digits, signed="S" in prefix, indicated="I" in prefix
+                )
+    return table
+
+
+NUMBER_FORMATTERS: dict[str, int] = _formatters()  # DEC, DEC1.., SHEX2, ISBIN16, ...
+ANY_NUMBER_FORMATTERS: dict[str, int] = {"NUM": 0x1106, "SNUM": 0x1506}  # input only
+
+# Built-in constants of the language (value of the name in any expression).
+BUILTIN_CONSTANTS: dict[str, int] = {
+    "CLS": 0, "HOME": 1, "BELL": 7, "BKSP": 8, "TAB": 9, "CR": 13,
+    "UNITON": 0x12, "UNITOFF": 0x1A, "UNITSOFF": 0x1C, "LIGHTSON": 0x14, "DIM": 0x1E,
+    "BRIGHT": 0x16, "LSBFIRST": 0, "MSBFIRST": 1, "MSBPRE": 0, "LSBPRE": 1, "MSBPOST": 2,
+    "LSBPOST": 3,
+}  # fmt: skip
+BUILTIN_CONSTANTS_25: dict[str, int] = {  # PBASIC 2.5 only
+    "CRSRXY": 2, "CRSRLF": 3, "CRSRRT": 4, "CRSRUP": 5, "CRSRDN": 6, "LF": 10,
+    "CLREOL": 11, "CLRDN": 12, "CRSRX": 14, "CRSRY": 15,
+}  # fmt: skip
+
+# Variable modifiers: name -> (size of the result, index within the variable).
+# HIGH* name the last part of whatever size the variable has (index None).
+VARIABLE_MODIFIERS: dict[str, tuple[VarSize, int | None]] = {
+    **{f"BIT{i}": (VarSize.BIT, i) for i in range(16)},
+    "LOWBIT": (VarSize.BIT, 0), "HIGHBIT": (VarSize.BIT, None),
+    **{f"NIB{i}": (VarSize.NIB, i) for i in range(4)},
+    "LOWNIB": (VarSize.NIB, 0), "HIGHNIB": (VarSize.NIB, None),
+    "BYTE0": (VarSize.BYTE, 0), "BYTE1": (VarSize.BYTE, 1),
+    "LOWBYTE": (VarSize.BYTE, 0), "HIGHBYTE": (VarSize.BYTE, None),
+}  # fmt: skip

@@ -1,0 +1,130 @@
+"""``bstool demo``: the whole chain on a built-in controller, side by side with the simulator.
+
+compile → tokenize → flash 30 virtual BS2sx modules through the programming protocol → run
+them on the twin driving the MuJoCo robot → compare with ``bstool states`` and ``simulate``.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import click
+
+from bstool.builtin import DEFAULT_MODEL, MODELS, builtin_controller
+
+
+@click.command("demo")
+@click.option(
+    "--model",
+    type=click.Choice(MODELS),
+    default=DEFAULT_MODEL,
+    show_default=True,
+    help="Which built-in evolved controller to run.",
+)
+@click.option(
+    "--controller",
+    type=click.Path(dir_okay=False),
+    help="Run this controller file instead of a built-in one.",
+)
+@click.option("-T", "--transitions", type=click.IntRange(min=1), default=30, show_default=True)
+@click.option(
+    "--fail",
+    "failed",
+    multiple=True,
+    metavar="L.M",
+    help="A dead module on the twin (and the same failure in the reference).",
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(file_okay=False),
+    help="Keep the build here (default: a temporary directory).",
+)
+@click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+def command(
+    model: str,
+    controller: str | None,
+    transitions: int,
+    failed: tuple[str, ...],
+    out: str | None,
+    quiet: bool,
+) -> None:
+    """Show that what runs on the stamps is what evolved: compile a controller, flash it into
+    30 virtual BS2sx modules over the serial programming protocol, run them on the simulated
+    robot, and print what the simulator predicted next to what the twin did."""
+    source = Path(controller) if controller else builtin_controller(model)
+    with tempfile.TemporaryDirectory(prefix="bstool-demo-") as tmp:
+        build_dir = Path(out) if out else Path(tmp) / "build"
+        ok = _demo(source, build_dir, transitions, failed, quiet)
+    if not ok:
+        sys.exit(1)
+
+
+def _demo(
+    source: Path, build_dir: Path, transitions: int, failed: tuple[str, ...], quiet: bool
+) -> bool:
+    from tqdm import tqdm
+
+    from bstool.compile import compile_controller
+    from bstool.controllers import load_controller
+    from bstool.moduleid import parse_module
+    from bstool.robot import RobotSpec
+    from bstool.sim.simulator import Simulator
+    from hil_mock.check import check
+    from hil_mock.fleet import flash_fleet, make_fleet
+    from hil_mock.robot import RobotTwin, load_build
+
+    say = click.echo
+    ctrl = load_controller(source)
+    fail_ids = [parse_module(f, ctrl.legs, ctrl.modules) for f in failed]
+    say(f"controller   {source.name}: {ctrl.model}, {ctrl.legs}×{ctrl.modules} modules, "
+        f"hash {ctrl.hash()[:8]}")  # fmt: skip
+
+    t0 = time.perf_counter()
+    result = compile_controller(source, build_dir)
+    slots = sum(len(m["slots"]) for m in result.manifest["modules"])
+    say(f"compile      {len(result.manifest['modules'])} PBASIC programs, {slots} slots "
+        f"tokenized ({time.perf_counter() - t0:.1f} s) -> {build_dir}")  # fmt: skip
+
+    build = load_build(build_dir)
+    fleet = make_fleet(build.legs, build.modules, name="demo")
+    try:
+        t0 = time.perf_counter()
+        with tqdm(total=len(fleet.urls), unit="module", desc="flash", disable=quiet or None,
+                  file=sys.stderr) as bar:  # fmt: skip
+            status = flash_fleet(build_dir, fleet)
+            bar.update(len(fleet.urls))
+        flashed = sum(1 for s in status.values() if s == "flashed")
+        say(f"flash        {flashed}/{len(status)} twins programmed over the serial protocol "
+            f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
+        twin = RobotTwin(build, eeproms=dict(fleet.eeproms), failed=fail_ids)
+        t0 = time.perf_counter()
+        with tqdm(total=transitions + 1, unit="transition", desc="twin", disable=quiet or None,
+                  file=sys.stderr) as bar:  # fmt: skip
+            run = twin.run(transitions, progress=bar.update)
+        wall = time.perf_counter() - t0
+    finally:
+        fleet.close()
+
+    reference = ctrl.states(transitions, failed=fail_ids)
+    spec = RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k)
+    sim = Simulator(spec).run(reference)
+    rep = check(build, run, reference, transitions, sim.distance)
+    say("")
+    say(f"{'':26}{'simulator':>14}{'twin (stamps)':>18}")
+    say(f"{'distance (cm)':26}{sim.distance * 100:14.2f}{run.distance * 100:18.2f}")
+    states_text = "equal" if rep.states_equal else f"{len(rep.mismatched)} modules differ"
+    say(f"{'states, ' + str(transitions) + ' transitions':26}{'reference':>14}{states_text:>18}")
+    say(f"{'transition period (s)':26}{build.period:14.3f}"
+        f"{rep.period_mean:12.3f} ±{rep.period_std:.3f}")  # fmt: skip
+    say(f"{'longest servo gap (ms)':26}{rep.servo_gap_estimate * 1000:14.1f}"
+        f"{rep.servo_gap_max * 1000:18.1f}")  # fmt: skip
+    announced = "all correct" if rep.announcements_ok else "WRONG"
+    say(f"{'start-up announcements':26}{'':14}{announced:>18}")
+    say(f"{'twin speed':26}{'':14}{run.virtual_seconds / wall:15.1f}× real time")
+    if rep.first_mismatch:
+        say(f"first difference: {rep.first_mismatch}")
+    return rep.states_equal and rep.announcements_ok

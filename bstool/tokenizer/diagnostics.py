@@ -1,0 +1,158 @@
+"""Error numbers of the PBASIC tokenizer and our wording for each.
+
+The numbers are Parallax's (so a message can be looked up in their documentation); the
+sentences are ours. ``Failure`` carries a number and a source offset inside the tokenizer; the
+public entry points turn it into :class:`bstool.errors.SourceError` with file, line and column.
+"""
+
+from __future__ import annotations
+
+MESSAGES: dict[int, str] = {
+    101: "expected one or more characters",
+    102: 'expected a closing "',
+    103: "character not recognised",
+    104: "expected a hexadecimal digit",
+    105: "expected a binary digit",
+    106: "symbol is longer than 32 characters",
+    107: "too many elements in the program",
+    108: "number has more than 16 digits",
+    109: "number does not fit in 16 bits",
+    110: "undefined symbol",
+    111: "undefined label",
+    112: "expected a constant",
+    113: "division by zero in a constant",
+    114: "EEPROM location out of range (0-2047)",
+    115: "this EEPROM location already holds DATA",
+    116: "expected '?'",
+    117: "label already defined",
+    118: "expected '\\'",
+    119: "expected '('",
+    120: "expected ')'",
+    121: "expected '['",
+    122: "expected ']'",
+    123: "symbol already defined",
+    124: "DATA overlaps the program",
+    125: "an array needs at least one element",
+    126: "out of variable space (26 bytes of RAM)",
+    127: "EEPROM full: the program does not fit in 2048 bytes",
+    128: "symbol table full",
+    129: "expected ':' or end of line",
+    130: "expected ',', ':' or end of line",
+    131: "expected STEP, ':' or end of line",
+    132: "NEXT without FOR",
+    133: "expected ','",
+    134: "expected ',' or ']'",
+    135: "expected a variable",
+    136: "expected a byte variable",
+    137: "expected a variable modifier",
+    138: "a bit variable cannot take a modifier",
+    139: "modifier must be smaller than the variable",
+    140: "modifier out of range for this variable",
+    141: "expected a constant, a variable, a unary operator or '('",
+    142: "expected a binary operator or ')'",
+    143: "expected a comparison operator or '['",
+    144: "expression too complex",
+    145: "more than 255 GOSUBs",
+    146: "more than 16 nested FOR...NEXT loops",
+    147: "WAIT takes at most 6 values",
+    148: "expected a label",
+    149: "expected a label, a variable or an instruction",
+    150: "expected '='",
+    151: "expected THEN",
+    152: "expected TO",
+    153: "expected a file name",
+    154: "expected a directive",
+    155: "directive given twice",
+    156: "no $STAMP directive: unknown target module",
+    157: "nothing to tokenize",
+    158: "more than 16 nested IF...THEN blocks",
+    159: "ELSE without IF or CASE",
+    160: "ENDIF without IF",
+    161: "expected a label, a variable, an instruction or ENDIF",
+    162: "expected a label, a variable, an instruction or end of line",
+    163: "more than 16 nested DO...LOOP blocks",
+    164: "LOOP without DO",
+    165: "WHILE/UNTIL may follow DO or LOOP, not both",
+    166: "expected WHILE, UNTIL, ':' or end of line",
+    167: "EXIT outside FOR...NEXT and DO...LOOP",
+    168: "IF without ENDIF",
+    169: "FOR without NEXT",
+    170: "DO without LOOP",
+    171: "more than 16 EXITs in one loop",
+    172: "expected a variable or WORD",
+    173: "expected a word variable",
+    174: "label without ':'",
+    175: "pin number must be 0 to 15",
+    176: "expected a label, a variable, an instruction or NEXT",
+    177: "expected a label, a variable, an instruction or LOOP",
+    178: "more than 16 nested SELECT blocks",
+    179: "expected CASE",
+    180: "CASE without SELECT",
+    181: "more than 16 CASEs in one SELECT",
+    182: "expected a label, a variable, an instruction or ENDSELECT",
+    183: "ENDSELECT without SELECT",
+    184: "SELECT without ENDSELECT",
+    185: "expected GOTO or GOSUB",
+    186: "constant must be at least 1",
+    187: "PBASIC version must be 2.0 or 2.5",
+    188: "expected a number, a directive name, a #DEFINE'd symbol or '-'",
+    189: "operator not allowed in a conditional-compile directive",
+    190: "expected #THEN",
+    191: "#IF without #ENDIF",
+    192: "#SELECT without #ENDSELECT",
+    193: "#ELSE without #IF",
+    194: "#ENDIF without #IF",
+    195: "symbol not allowed in a conditional-compile directive",
+    196: "expected a user-defined symbol",
+    197: "more than 16 nested #IF blocks",
+    198: "expected a character or ASCII value",
+    199: "#ERROR",
+    200: "expected #ENDIF",
+    201: "expected '}'",
+    203: "expected '}': at most 7 more project files",
+    204: "expected a target module (BS2SX)",
+    218: "more than 16 nested #SELECT blocks",
+    219: "expected #CASE",
+    220: "#CASE without #SELECT",
+    221: "#ENDSELECT without #SELECT",
+    222: "expected a declaration, a statement or #ENDIF",
+    223: "expected a declaration, a statement or #ENDSELECT",
+    224: "expected #ELSE",
+    225: "expected a number, a directive name or a #DEFINE'd symbol",
+    208: "expected a COM port name (COM1, COM2, ...)",
+    226: "expected statements after the previous CASE",
+    227: "expected a constant, a variable or WORD",
+    228: "ELSEIF without IF",
+    229: "more than 16 ELSEIFs in one IF",
+    230: "ELSEIF after ELSE",
+}
+
+HINTS: dict[int, str] = {
+    110: "declare it with CON, VAR, PIN or DATA (names are not case-sensitive)",
+    111: "define the label (name followed by ':') or fix its spelling",
+    124: "move the DATA lower (@address) or shorten the program",
+    126: "use smaller types (Nib, Bit) or share variables with aliases",
+    127: "shorten the program or move work into another slot (RUN)",
+    144: "split the expression over several statements",
+    156: "start the file with ' {$STAMP BS2sx}",
+    168: "close the block with ENDIF",
+    169: "close the loop with NEXT",
+    170: "close the loop with LOOP",
+    174: "write the label as 'name:'",
+}
+
+
+class Failure(Exception):
+    """A tokenizer error at a character offset (``length`` characters long)."""
+
+    def __init__(self, code: int, offset: int, length: int = 0, detail: str = "") -> None:
+        super().__init__(code)
+        self.code = code
+        self.offset = offset
+        self.length = length
+        self.detail = detail
+
+    @property
+    def message(self) -> str:
+        text = MESSAGES.get(self.code, "error")
+        return f"{text}: {self.detail}" if self.detail else text

@@ -1,0 +1,707 @@
+"""Instruction compilers: one small method per PBASIC instruction (or family).
+
+A statement is written as its argument items (each preceded by a 1 bit), a 0 bit with the
+6-bit instruction code, then inline fields (see tokens.py and ../../docs/tokenizer.md). The
+PBASIC 2.5 block statements (IF/ELSEIF/ELSE/ENDIF, DO/LOOP, EXIT, SELECT/CASE, ON) have no
+instruction of their own on the BS2sx: they are laid out as IF...THEN and GOTO instructions,
+with forward addresses reserved and patched when the block closes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+from bstool.tokenizer import tokens
+from bstool.tokenizer.declarations import Declarations
+from bstool.tokenizer.diagnostics import Failure
+from bstool.tokenizer.lexer import OP_EQ, Element, K
+from bstool.tokenizer.tokens import Binary, Instruction, Unary
+
+MAX_EXITS = 16
+NEST_LIMIT = 16
+ADDR = tokens.ADDRESS_BITS
+
+
+class Nest(Enum):
+    """Kinds of open blocks."""
+
+    IF = "IF"
+    FOR = "FOR"
+    DO = "DO"
+    SELECT = "SELECT"
+
+
+@dataclass
+class Block:
+    kind: Nest = Nest.FOR
+    element: int = 0  # element index of the opening word (for "... without ..." errors)
+    exp_idx: int = 0  # SELECT: element index where its expression starts
+    jump: int = 0  # loop start address (FOR, DO)
+    skip: int = 0  # address field to patch when the current part ends (0 = none)
+    exits: list[int] = field(default_factory=lambda: [0] * MAX_EXITS)
+    # IF blocks only
+    single_line: bool = False  # IF c THEN statement(s) [ELSE statement(s)] on one line
+    in_else: bool = False  # compiling the ELSE part
+    awaiting: bool = False  # single-line: THEN/ELSE just read, its statement follows on this line
+
+
+class Statements(Declarations):
+    """Compiles the instructions of one slot into ``self.image``."""
+
+    def init_statements(self, gosubs: int) -> None:
+        self.blocks = [Block() for _ in range(4 * NEST_LIMIT)]
+        self.depth = 0
+        self.counts = {"for": 0, "if": 0, "do": 0, "select": 0}
+        self.gosubs = 0
+        self.patches: list[tuple[int, int]] = []  # (element index, address field)
+        self.image.pos = (gosubs + 1) * ADDR
+        self.statement_starts: list[tuple[int, int]] = []  # (source offset, bit address)
+
+    # ---- helpers ------------------------------------------------------------------------
+    @property
+    def top(self) -> Block:
+        return self.blocks[self.depth - 1]
+
+    def reserve(self) -> int:
+        """Leave room for a 14-bit address to patch later; return where it is."""
+        at = self.image.pos
+        self.image.pos += ADDR
+        return at
+
+    def patch_here(self, at: int) -> None:
+        self.patch(at, self.image.pos)
+
+    def patch(self, at: int, address: int) -> None:
+        """Write a 14-bit address into a reserved field (a DATA overlap is error 124)."""
+        try:
+            self.image.patch_address(at, address)
+        except Failure as exc:
+            if exc.offset < 0:
+                raise self.fail(exc.code) from None
+            raise
+
+    def address(self) -> None:
+        """A label: its address now, or a reserved field patched at the end."""
+        el = self.get()
+        if el.kind is K.LABEL:
+            self._emit_address(int(el.value))
+        elif el.kind is K.UNDEF:
+            self.patches.append((self.idx - 1, self.image.pos))
+            self.image.pos += ADDR
+        else:
+            raise self.fail(148)
+
+    def _emit_address(self, value: int) -> None:
+        self.emit(3, value)
+        self.emit(11, value >> 3)
+
+    def comma(self) -> None:
+        self.expect(K.COMMA, 133)
+
+    def more_or_bracket(self) -> bool:
+        """',' (1 bit, more follows) or ']' (0 bit); True at ']'."""
+        el = self.get()
+        if el.kind is K.COMMA:
+            self.emit(1, 1)
+            return False
+        if el.kind is not K.RBRACKET:
+            raise self.fail(134)
+        self.emit(1, 0)
+        return True
+
+    def nesting_error(self) -> None:
+        """A closing word that does not match the innermost open block."""
+        block = self.top
+        if block.kind is Nest.IF:
+            if not block.awaiting:
+                raise self.fail(161)
+            return  # an IF opened on this very line: the IDE reports nothing here
+        raise self.fail({Nest.FOR: 176, Nest.DO: 177, Nest.SELECT: 182}[block.kind])
+
+    def patch_skip(self) -> None:
+        block = self.top
+        if block.skip > 0:
+            self.patch_here(block.skip)
+            block.skip = 0
+
+    def patch_exits(self) -> None:
+        for at in self.top.exits:
+            if at == 0:
+                break
+            self.patch_here(at)
+
+    def push(self, kind: Nest, element: int) -> Block:
+        block = self.blocks[self.depth]
+        block.kind = kind
+        block.element = element
+        return block
+
+    # ---- the statement loop -------------------------------------------------------------
+    def compile_program(self) -> None:
+        started = False
+        while self.more():
+            el = self.get()
+            if el.kind is K.LABEL:
+                raise self.fail(117)
+            if el.kind is K.UNDEF:
+                self.new_symbol_room()
+                self.symbols[el.name] = (K.LABEL, self.image.pos)
+                nxt = self.peek()
+                if self.lang25 and (nxt.kind is not K.END or not nxt.soft):
+                    raise self.fail(174)
+            else:
+                if not started:
+                    self.patch(0, self.image.pos)
+                    started = True
+                self.statement_starts.append((el.start, self.image.pos))
+                if el.kind in (K.VARIABLE, K.PINNUM):
+                    self.idx -= 1
+                    self.op_let()
+                elif el.kind is not K.INSTRUCTION:
+                    raise self.fail(149)
+                else:
+                    self.dispatch(str(el.value), el)
+            self.end_of_statement()
+        if started:
+            self.emit_code(Instruction.END)
+        if self.lang25 and self.depth > 0:
+            block = self.top
+            self.idx = block.element
+            self.get()
+            if block.kind is Nest.IF:
+                raise self.fail(168)
+            raise self.fail({Nest.FOR: 169, Nest.DO: 170, Nest.SELECT: 184}[block.kind])
+
+    def end_of_statement(self) -> None:
+        """Check what ends a statement; a line end also closes a single-line IF."""
+        block = self.top if self.counts["if"] else None
+        if block is None or block.kind is not Nest.IF or not block.single_line:
+            self.expect_end()
+            return
+        if block.awaiting:  # the statement after THEN/ELSE follows on the same line
+            block.awaiting = False
+            return
+        nxt = self.peek()
+        at_else = nxt.kind is K.INSTRUCTION and nxt.value in ("ELSE", "ELSEIF")
+        if (block.in_else or not at_else) and not self.expect_end():
+            if block.exits[0] > 0:
+                self.patch_exits()
+            self.patch_skip()
+            self.depth -= 1
+            self.counts["if"] -= 1
+
+    def dispatch(self, name: str, el: Element) -> None:
+        method = getattr(self, "op_" + name.lower(), None)
+        if method is None:  # pragma: no cover - every reserved instruction has a method
+            raise self.fail(149)
+        method()
+
+    def patch_remaining(self) -> None:
+        for element, at in self.patches:
+            self.idx = element
+            el = self.get()
+            if el.kind is K.UNDEF:
+                raise self.fail(111)
+            self.patch(at, int(el.value))
+
+    # ---- simple instructions ------------------------------------------------------------
+    def _pin_op(self, code: Instruction) -> None:
+        self.stack_idx = 0
+        self.value_emit(True, pin_const=True)
+        self.emit_code(code)
+
+    def op_high(self) -> None:
+        self._pin_op(Instruction.HIGH)
+
+    def op_low(self) -> None:
+        self._pin_op(Instruction.LOW)
+
+    def op_toggle(self) -> None:
+        self._pin_op(Instruction.TOGGLE)
+
+    def op_input(self) -> None:
+        self._pin_op(Instruction.INPUT)
+
+    def op_output(self) -> None:
+        self._pin_op(Instruction.OUTPUT)
+
+    def op_reverse(self) -> None:
+        self._pin_op(Instruction.REVERSE)
+
+    def _value_op(self, code: Instruction, resume: bool = False) -> None:
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.emit_code(code)
+        if resume:
+            self._emit_address(self.image.pos + ADDR)
+
+    def op_pause(self) -> None:
+        self._value_op(Instruction.PAUSE)
+
+    def op_run(self) -> None:
+        self._value_op(Instruction.RUN)
+
+    def op_nap(self) -> None:
+        self._value_op(Instruction.NAP, resume=True)
+
+    def op_sleep(self) -> None:
+        self._value_op(Instruction.SLEEP, resume=True)
+
+    def op_end(self) -> None:
+        self.emit_code(Instruction.END)
+
+    def op_stop(self) -> None:
+        self.emit_code(Instruction.STOP)
+
+    def op_return(self) -> None:
+        self.emit_code(Instruction.RETURN)
+
+    def op_goto(self) -> None:
+        self.emit_code(Instruction.GOTO)
+        self.address()
+
+    def op_gosub(self) -> None:
+        self.emit_code(Instruction.GOSUB)
+        self.gosubs += 1
+        self.emit(tokens.GOSUB_ID_BITS, self.gosubs)
+        self.address()
+        self.patch(self.gosubs * ADDR, self.image.pos)
+
+    def op_let(self) -> None:
+        self.stack_idx = 1
+        self.write_into(1)
+        el = self.get()
+        if el.kind is not K.COND1 or el.value != OP_EQ:
+            raise self.fail(150)
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.emit_exp(1, True)
+        self.emit_code(Instruction.DONE)
+
+    def op_random(self) -> None:
+        here = self.idx
+        self.stack_idx = 0
+        self.read_write(False)
+        self.emit_exp(0, True)
+        self.emit_code(Instruction.RANDOM)
+        self.idx = here
+        self.stack_idx = 1
+        self.write_emit()
+
+    def _pin_then(self, stack: int) -> None:
+        """pin (kept in exp 1), ',', value pushed, pin pushed."""
+        self.stack_idx = stack
+        self.value_into(1, pin_const=True)
+        self.comma()
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.emit_exp(1, True)
+
+    def op_pulsout(self) -> None:
+        self._pin_then(1)
+        self.emit_code(Instruction.PULSOUT)
+
+    def _measure(self, code: Instruction) -> None:
+        self._pin_then(1)
+        self.comma()
+        self.emit_code(code)
+        self.write_emit()
+
+    def op_pulsin(self) -> None:
+        self._measure(Instruction.PULSIN)
+
+    def op_count(self) -> None:
+        self._measure(Instruction.COUNT)
+
+    def op_rctime(self) -> None:
+        self._measure(Instruction.RCTIME)
+
+    def op_pwm(self) -> None:
+        self.stack_idx = 2
+        self.value_into(1, pin_const=True)
+        self.comma()
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.comma()
+        self.stack_idx = 1
+        self.value_emit(True)
+        self.emit_exp(1, True)
+        self.emit_code(Instruction.PWM)
+
+    def op_freqout(self) -> None:
+        self.stack_idx = 0
+        self.value_emit(True, pin_const=True)
+        self.comma()
+        self.stack_idx = 1
+        self.value_emit(True)
+        self.comma()
+        self.stack_idx = 2
+        self.value_emit(True)
+        if self.check(K.COMMA):
+            self.stack_idx = 3
+            self.value_emit(True)
+            self.emit_code(Instruction.FREQOUT2)
+        else:
+            self.emit_code(Instruction.FREQOUT1)
+
+    def op_dtmfout(self) -> None:
+        self.stack_idx = 0
+        self.value_emit(True, pin_const=True)
+        self.comma()
+        if self.peek().kind is K.LBRACKET:
+            self.emit_constant(tokens.DTMF_DEFAULT_OFF_MS, True)
+            self.emit_constant(tokens.DTMF_DEFAULT_ON_MS, True)
+        else:
+            self.stack_idx = 2
+            self.value_into(1)
+            self.comma()
+            self.stack_idx = 1
+            self.value_emit(True)
+            self.comma()
+            self.emit_exp(1, True)
+        self.emit_code(Instruction.DTMFOUT)
+        self.expect(K.LBRACKET, 121)
+        while True:
+            self.stack_idx = 3
+            self.value_emit(False)
+            self.emit(1, 0)
+            if self.more_or_bracket():
+                return
+
+    def op_xout(self) -> None:
+        self.stack_idx = 0
+        self.value_emit(True, pin_const=True)
+        self.comma()
+        self.stack_idx = 1
+        self.value_emit(True, pin_const=True)
+        self.comma()
+        self.emit_code(Instruction.XOUT)
+        self.expect(K.LBRACKET, 121)
+        while True:
+            self.stack_idx = 2
+            self.value_emit(False)
+            self.expect(K.BACKSLASH, 118)
+            self.emit_constant(tokens.X10_KEY_BASE, True)
+            self.emit_operator(Binary.MOD)
+            self.stack_idx = 3
+            self.value_emit(True)
+            self.emit_constant(tokens.X10_KEY_BASE, True)
+            self.emit_operator(Binary.MUL)
+            self.emit_operator(Binary.ADD)
+            if self.check(K.BACKSLASH):
+                self.stack_idx = 3
+                self.value_emit(True)
+            else:
+                self.emit_constant(tokens.XOUT_DEFAULT_CYCLES, True)
+            self.emit_operator(Unary.NOT)
+            self.emit(1, 0)
+            if self.more_or_bracket():
+                return
+
+    def op_button(self) -> None:
+        self.stack_idx = 5
+        self.value_into(1, pin_const=True)
+        self.comma()
+        for stack in (0, 1, 2):
+            self.stack_idx = stack
+            self.value_emit(True)
+            self.comma()
+        here = self.idx
+        self.stack_idx = 4
+        self.read_into(2)
+        self.idx = here
+        self.stack_idx = 1
+        self.write_into(3)
+        self.comma()
+        self.stack_idx = 3
+        self.value_emit(True)
+        self.comma()
+        self.emit_exp(2, True)
+        self.emit_exp(1, True)
+        self.emit_code(Instruction.BUTTON)
+        self.emit_exp(3, False)
+        self.emit(1, 0)
+        self.address()
+
+    def _shift_header(self, code: Instruction) -> None:
+        self.stack_idx = 1
+        self.value_into(1, pin_const=True)
+        self.comma()
+        self.stack_idx = 2
+        self.value_into(2, pin_const=True)
+        self.comma()
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.comma()
+        self.emit_exp(1, True)
+        self.emit_exp(2, True)
+        self.emit_code(code)
+        self.expect(K.LBRACKET, 121)
+
+    def _shift_bits(self) -> None:
+        if self.check(K.BACKSLASH):
+            self.stack_idx = 3
+            self.value_emit(False)
+        else:
+            self.emit_constant(tokens.SHIFT_DEFAULT_BITS, False)
+
+    def op_shiftin(self) -> None:
+        self._shift_header(Instruction.SHIFTIN)
+        while True:
+            self.stack_idx = 5
+            self.write_into(1)
+            self._shift_bits()
+            self.emit_constant(0, True)
+            self.emit(1, 0)
+            self.emit_exp(1, False)
+            self.emit(1, 0)
+            if self.more_or_bracket():
+                return
+
+    def op_shiftout(self) -> None:
+        self._shift_header(Instruction.SHIFTOUT)
+        while True:
+            self.stack_idx = 4
+            self.value_into(1)
+            self._shift_bits()
+            self.emit_exp(1, True)
+            self.emit(1, 0)
+            if self.more_or_bracket():
+                return
+
+    # ---- tables and branches ------------------------------------------------------------
+    def op_branch(self) -> None:
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.emit_code(Instruction.BRANCH)
+        self.comma()
+        self.expect(K.LBRACKET, 121)
+        while True:
+            self.address()
+            if self.more_or_bracket():
+                return
+
+    def _value_list(self, stack: int) -> None:
+        self.expect(K.LBRACKET, 121)
+        while True:
+            self.stack_idx = stack
+            self.value_emit(False)
+            self.emit(1, 0)
+            if self.more_or_bracket():
+                break
+        self.comma()
+        self.stack_idx = 1
+        self.write_emit()
+
+    def op_lookup(self) -> None:
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.emit_code(Instruction.LOOKUP)
+        self.comma()
+        self._value_list(2)
+
+    def op_lookdown(self) -> None:
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.emit_code(Instruction.LOOKDOWN)
+        self.comma()
+        el = self.get()
+        if el.kind is K.COND1:
+            compare = int(el.value)
+        else:
+            if el.kind is not K.LBRACKET:
+                raise self.fail(143)
+            self.idx -= 1
+            compare = OP_EQ
+        self.emit(tokens.COMPARE_BITS, compare)
+        self._value_list(3)
+
+    def op_on(self) -> None:
+        self.stack_idx = 0
+        self.value()
+        el = self.get()
+        if el.kind is not K.INSTRUCTION or el.value not in ("GOTO", "GOSUB"):
+            raise self.fail(185)
+        gosub = el.value == "GOSUB"
+        if gosub:
+            self.emit_code(Instruction.GOSUB)
+            self.gosubs += 1
+            self.emit(tokens.GOSUB_ID_BITS, self.gosubs)
+            self._emit_address(self.image.pos + ADDR)
+        self.emit_exp(0, True)
+        self.emit_code(Instruction.BRANCH)
+        while True:
+            self.address()
+            el = self.get()
+            if el.kind is K.COMMA:
+                self.emit(1, 1)
+                continue
+            if el.kind is not K.END:
+                raise self.fail(130)
+            self.emit(1, 0)
+            break
+        self.idx -= 1
+        if gosub:
+            self.emit_code(Instruction.RETURN)
+            self.patch(self.gosubs * ADDR, self.image.pos)
+
+    # ---- EEPROM and scratchpad ----------------------------------------------------------
+    def _location_plus(self, offset: int) -> None:
+        """exp 0 = exp 1 (the location) + offset."""
+        self.exp[0] = self.exp[1]
+        self.item_constant(offset)
+        self.item(Binary.ADD)
+
+    def _word_switch(self, code: int) -> int:
+        """PBASIC 2.5 'WORD' before an item; returns the element index after it (0 = none)."""
+        if self.lang25 and self.peek().kind is K.VARTYPE:
+            el = self.get()
+            if el.value != 3:
+                raise self.fail(code)
+            return self.idx
+        return 0
+
+    def _high_byte_write(self, var_at: int) -> None:
+        """Check that the WORD target is a plain word variable; keep its write item."""
+        here = self.idx
+        self.idx = var_at
+        el = self.get()
+        if (int(el.value) & 0x0F00) != 0x0300:
+            raise self.fail(173)
+        start = el.start
+        if self.get().kind is K.PERIOD:
+            last = self.get()
+            raise Failure(173, start, last.start - start + last.length)
+        self.idx = here
+        self.exp[2] = self.exp[0]
+
+    def _patched_high_byte(self, location_offset: int, code: Instruction, resume: bool) -> None:
+        """Second transfer of a WORD item: location + offset, variable.HIGHBYTE."""
+        var_exp = self.exp[2]
+        self._location_plus(location_offset)
+        self.emit_exp(0, True)
+        self.emit_code(code)
+        if resume:
+            self._emit_address(self.image.pos + ADDR)
+        # The write item of a word variable is its last 10 bits (6-bit item, 4-bit index).
+        item = var_exp.value & 0x3FF
+        rest_len = var_exp.length - 10
+        rest = var_exp.value >> 10
+        bits = rest_len
+        value = rest
+        if rest_len > 0:
+            value, bits = (value << 7) | 0x42, bits + 7
+            self.exp[0] = type(var_exp)(value, bits)
+            self.item(Binary.MUL)
+            value, bits = (self.exp[0].value << 1) | 1, self.exp[0].length + 1
+        byte_item = ((item & 0x3E0) << 1) + ((item & 0xF) * 2 + 1)
+        value, bits = (value << 11) | byte_item, bits + 11
+        if bits >= tokens.EXPRESSION_BUFFER_BITS:
+            raise self.fail(144)
+        self.exp[0] = type(var_exp)(value, bits)
+        self.emit_exp(0, False)
+        self.emit(1, 0)
+
+    def _read_like(self, code: Instruction, resume: bool) -> None:
+        offset = 0
+        self.stack_idx = 0
+        self.value_emit(True)
+        self.exp[1] = self.exp[0]
+        self.emit_code(code)
+        self.comma()
+        while True:
+            if resume:
+                self._emit_address(self.image.pos + ADDR)
+            word_at = self._word_switch(172)
+            self.stack_idx = 1
+            self.write_emit()
+            if word_at:
+                self._high_byte_write(word_at)
+                offset += 1
+                self._patched_high_byte(offset, code, resume)
+            offset += 1
+            nxt = self.peek() if self.lang25 else Element(K.END, 0, 0, 0)
+            if nxt.kind is not K.COMMA:
+                break
+            self._location_plus(offset)
+            self.emit_exp(0, True)
+            self.emit_code(code)
+            self.comma()
+        if nxt.kind is not K.END:
+            self.get()
+            raise self.fail(130)
+
+    def op_read(self) -> None:
+        self._read_like(Instruction.READ, resume=True)
+
+    def op_get(self) -> None:
+        self._read_like(Instruction.GET, resume=False)
+
+    def op_write(self) -> None:
+        offset = 0
+        self.stack_idx = 1
+        self.value_into(1)
+        while True:
+            self.comma()
+            word_at = self._word_switch(227)
+            self.stack_idx = 0
+            self.value_emit(True)
+            self.exp[2] = self.exp[0]
+            self.exp[0] = self.exp[1]
+            if offset > 0:
+                self.item_constant(offset)
+                self.item(Binary.ADD)
+            self.emit_exp(0, True)
+            self.emit_code(Instruction.WRITE)
+            self._emit_address(self.image.pos + ADDR)
+            if word_at:
+                self.exp[0] = self.exp[2]
+                self.item_constant(8)
+                self.item(Binary.SHR)
+                self.emit_exp(0, True)
+                offset += 1
+                self._location_plus(offset)
+                self.emit_exp(0, True)
+                self.emit_code(Instruction.WRITE)
+                self._emit_address(self.image.pos + ADDR)
+            offset += 1
+            nxt = self.peek() if self.lang25 else Element(K.END, 0, 0, 0)
+            if nxt.kind is not K.COMMA:
+                break
+        if nxt.kind is not K.END:
+            self.get()
+            raise self.fail(130)
+
+    def op_put(self) -> None:
+        offset = 0
+        self.stack_idx = 0
+        self.value_into(1)
+        while True:
+            self.comma()
+            word_at = self._word_switch(227)
+            self.exp[0] = self.exp[1]
+            if offset > 0:
+                self.item_constant(offset)
+                self.item(Binary.ADD)
+            self.emit_exp(0, True)
+            self.stack_idx = 1
+            self.value_emit(True)
+            self.exp[2] = self.exp[0]
+            self.emit_code(Instruction.PUT)
+            if word_at:
+                offset += 1
+                self._location_plus(offset)
+                self.emit_exp(0, True)
+                self.exp[0] = self.exp[2]
+                self.item_constant(8)
+                self.item(Binary.SHR)
+                self.emit_exp(0, True)
+                self.emit_code(Instruction.PUT)
+            offset += 1
+            nxt = self.peek() if self.lang25 else Element(K.END, 0, 0, 0)
+            if nxt.kind is not K.COMMA:
+                break
+        if nxt.kind is not K.END:
+            self.get()
+            raise self.fail(130)

@@ -1,0 +1,81 @@
+"""Compare what the twin did with what bstool predicts: states with ``bstool states``, the path
+with ``bstool simulate``, the timing with the build's manifest estimates."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bstool.moduleid import ModuleId
+from hil_mock.robot import Build, TwinResult
+
+
+@dataclass
+class TwinCheck:
+    transitions: int
+    states_equal: bool
+    mismatched: list[ModuleId]  # modules whose sequence differs from the reference
+    first_mismatch: dict[str, Any] | None
+    twin_distance: float
+    sim_distance: float | None
+    period_mean: float
+    period_std: float
+    period_nominal: float
+    servo_gap_max: float
+    servo_gap_estimate: float
+    stalled: list[ModuleId]
+    announcements_ok: bool
+    notes: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        out = dict(self.__dict__)
+        out["mismatched"] = [str(m) for m in self.mismatched]
+        out["stalled"] = [str(m) for m in self.stalled]
+        return out
+
+
+def check(
+    build: Build,
+    result: TwinResult,
+    reference: np.ndarray | None,
+    transitions: int,
+    sim_distance: float | None = None,
+) -> TwinCheck:
+    """``reference``: the (T+1, n, m) states of ``bstool states`` (with the same failures)."""
+    mismatched: list[ModuleId] = []
+    first = None
+    if reference is not None:
+        for mid, seq in result.states.items():
+            want = reference[: transitions + 1, mid.leg, mid.module].tolist()
+            if seq[: transitions + 1] != want:
+                mismatched.append(mid)
+                if first is None:
+                    t = next(
+                        (i for i, (a, b) in enumerate(zip(seq, want, strict=False)) if a != b),
+                        len(seq),
+                    )
+                    first = {"module": str(mid), "transition": t, "twin": seq[t : t + 5],
+                             "reference": want[t : t + 5]}  # fmt: skip
+    mean, std = result.period_stats()
+    hash8 = build.manifest["controller"]["hash8"]
+    ok = all(line == f"bstool {mid.label} {hash8}" for mid, line in result.announcements.items())
+    estimates = [m["timing"]["longest_servo_gap_s"] for m in build.manifest["modules"]]
+    gaps = list(result.servo_gaps.values())
+    return TwinCheck(
+        transitions=transitions,
+        states_equal=reference is not None and not mismatched and not result.stalled,
+        mismatched=mismatched,
+        first_mismatch=first,
+        twin_distance=result.distance,
+        sim_distance=sim_distance,
+        period_mean=mean,
+        period_std=std,
+        period_nominal=build.period,
+        servo_gap_max=max(gaps) if gaps else math.nan,
+        servo_gap_estimate=max(estimates) if estimates else math.nan,
+        stalled=list(result.stalled),
+        announcements_ok=ok,
+    )

@@ -1,0 +1,84 @@
+"""Stand-in runners for slot 0 until (or besides) the token interpreter.
+
+:class:`AnnounceRunner` prints a fixed start-up line; :class:`ScanRunner` prints the
+announcement found as plain ASCII inside slot 0 (test images carry it in their DATA), so what
+is heard depends on what was really flashed.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+
+from hil_mock.eeprom import Eeprom
+
+_LINE = re.compile(rb"bstool L\d+\.M\d+ [0-9a-f]{8}\r")
+
+
+class AnnounceRunner:
+    """Emits ``line`` each time slot 0 starts."""
+
+    def __init__(self, line: bytes) -> None:
+        self.line = line
+        self.starts = 0
+
+    def start(self, eeprom: Eeprom, emit: Callable[[bytes], None]) -> None:
+        self.starts += 1
+        emit(self.line)
+
+    def stop(self) -> None:
+        pass
+
+
+class ScanRunner:
+    """Emits the first ``bstool L<i>.M<j> <hash8>\\r`` found in slot 0, if any."""
+
+    def __init__(self) -> None:
+        self.starts = 0
+
+    def start(self, eeprom: Eeprom, emit: Callable[[bytes], None]) -> None:
+        self.starts += 1
+        found = _LINE.search(eeprom.slot(0))
+        if found:
+            emit(found.group(0))
+
+    def stop(self) -> None:
+        pass
+
+
+class InterpreterRunner:
+    """Runs slot 0 on the token interpreter (hil_mock.stamp) for ``seconds`` of virtual time
+    and emits what the program sent on pin 16 (DEBUG): a bounded preview, enough for the
+    start-up announcement. A program the interpreter cannot run emits nothing (see ``error``).
+    """
+
+    def __init__(self, seconds: float = 0.05) -> None:
+        self.seconds = seconds
+        self.starts = 0
+        self.error: str | None = None
+
+    def start(self, eeprom: Eeprom, emit: Callable[[bytes], None]) -> None:
+        self.starts += 1
+        self.error = None
+        try:
+            from hil_mock.stamp.interpreter import Stamp
+
+            stamp = Stamp(eeprom)
+            stamp.run(self.seconds)
+        except Exception as exc:  # a half-written or foreign image: the stamp just sits there
+            self.error = f"{type(exc).__name__}: {exc}"
+            return
+        if stamp.debug:
+            emit(bytes(stamp.debug))
+
+    def stop(self) -> None:
+        pass
+
+
+def preview_runner() -> InterpreterRunner | ScanRunner:
+    """The runner for twins people flash by hand: the interpreter when it is installed."""
+    try:
+        import hil_mock.stamp.interpreter  # noqa: F401
+    except ImportError:
+        return ScanRunner()
+    return InterpreterRunner()
