@@ -1,8 +1,15 @@
 """Time to tokenize a set of PBASIC programs with bstool's tokenizer.
 
 Target (issue 3): the 30 programs `bstool compile` makes tokenize in well under a second.
-Until `bstool compile` exists this uses the 30 shared tokenizer vectors (the 5 that must fail
-included: error paths cost time too). Usage: python bench/tokenize_speed.py [FILE.bsx ...]
+Without FILES this uses the 30 shared tokenizer vectors (the 5 that must fail included: error
+paths cost time too).
+
+    python bench/tokenize_speed.py [--baseline DIR] [FILE.bsx ...]
+
+``--baseline DIR`` times, side by side in the same run, another copy of the package: DIR must
+hold a ``bstool`` folder (e.g. a copy of an older tree: ``cp -r bstool /tmp/old/``). Each
+round runs both versions one after the other in fresh processes, so both see the same load;
+the figures are the best of the rounds, in CPU time.
 """
 
 from __future__ import annotations
@@ -13,36 +20,85 @@ import sys
 # path so `import tokenize` (used by dataclasses via inspect) finds the real module.
 sys.path[:] = [p for p in sys.path if not p.endswith("bench")]
 
+import argparse  # noqa: E402
+import os  # noqa: E402
+import subprocess  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from bstool.errors import SourceError  # noqa: E402
-from bstool.tokenizer import tokenize_file  # noqa: E402
-
 VECTORS = Path(__file__).resolve().parent.parent / "tests" / "vectors" / "tokenizer"
+ROUNDS = 5
+
+
+def _time_once(files: list[Path]) -> tuple[float, float, int]:
+    """(wall s, CPU s, slots) of one pass over ``files`` with the importable bstool."""
+    from bstool.errors import SourceError
+    from bstool.tokenizer import tokenize_file
+
+    start, start_cpu = time.perf_counter(), time.process_time()
+    slots = 0
+    for path in files:
+        try:
+            slots += len(tokenize_file(path).slots)
+        except SourceError:
+            slots += 0  # the must-fail vectors
+    return time.perf_counter() - start, time.process_time() - start_cpu, slots
+
+
+def _worker(files: list[Path]) -> int:
+    _time_once(files)  # warm up: imports, regex compilation, file cache
+    wall, cpu, slots = _time_once(files)
+    print(f"{wall} {cpu} {slots}")
+    return 0
+
+
+def _run_worker(files: list[Path], pythonpath: str | None) -> tuple[float, float, int]:
+    env = dict(os.environ)
+    if pythonpath is not None:
+        env["PYTHONPATH"] = pythonpath + os.pathsep + env.get("PYTHONPATH", "")
+    out = subprocess.run(
+        [sys.executable, __file__, "--worker", *map(str, files)],
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split()
+    return float(out[0]), float(out[1]), int(out[2])
 
 
 def main(argv: list[str]) -> int:
-    files = [Path(a) for a in argv] or sorted(
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", type=Path, help="folder holding another bstool package")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("files", nargs="*", type=Path)
+    args = parser.parse_args(argv)
+    files = args.files or sorted(
         next(p for p in d.glob("*.bsx")) for d in VECTORS.iterdir() if d.is_dir()
     )
-    best = best_cpu = float("inf")
-    slots = 0
-    for _ in range(5):
-        start, start_cpu = time.perf_counter(), time.process_time()
-        slots = 0
-        for path in files:
-            try:
-                slots += len(tokenize_file(path).slots)
-            except SourceError:
-                slots += 0  # the must-fail vectors
-        best = min(best, time.perf_counter() - start)
-        best_cpu = min(best_cpu, time.process_time() - start_cpu)
-    print(
-        f"tokenize: {len(files)} programs ({slots} slots) in {best * 1000:.1f} ms wall, "
-        f"{best_cpu * 1000:.1f} ms CPU (best of 5)"
-    )
-    print(f"tokenize: {best / len(files) * 1000:.2f} ms per program; target: 30 programs < 1 s")
+    if args.worker:
+        return _worker(files)
+    here = str(Path(__file__).resolve().parent.parent)
+    variants = {"current": here}
+    if args.baseline is not None:
+        if not (args.baseline / "bstool" / "tokenizer").is_dir():
+            parser.error(f"{args.baseline} holds no bstool/tokenizer package")
+        variants = {"baseline": str(args.baseline.resolve()), **variants}
+    best: dict[str, tuple[float, float, int]] = {}
+    for _ in range(ROUNDS):
+        for name, path in variants.items():
+            wall, cpu, slots = _run_worker(files, path)
+            old = best.get(name)
+            best[name] = (min(wall, old[0]), min(cpu, old[1]), slots) if old else (wall, cpu, slots)
+    for name, (wall, cpu, slots) in best.items():
+        print(
+            f"tokenize [{name}]: {len(files)} programs ({slots} slots) in {wall * 1000:.1f} ms "
+            f"wall, {cpu * 1000:.1f} ms CPU (best of {ROUNDS}); "
+            f"{cpu / len(files) * 1000:.2f} ms CPU per program"
+        )
+    if "baseline" in best:
+        ratio = best["baseline"][1] / best["current"][1]
+        print(f"tokenize: current is {ratio:.2f}x the speed of the baseline (CPU)")
+    print("tokenize: target: 30 programs well under 1 s")
     return 0
 
 

@@ -10,6 +10,8 @@ from typing import Any
 import numpy as np
 
 from bstool.moduleid import ModuleId
+from bstool.robot import RobotSpec
+from bstool.sim.simulator import Simulator
 from hil_mock.robot import Build, TwinResult
 
 
@@ -35,6 +37,21 @@ class TwinCheck:
         out["mismatched"] = [str(m) for m in self.mismatched]
         out["stalled"] = [str(m) for m in self.stalled]
         return out
+
+
+def settle_seconds(build: Build) -> float:
+    """How long the twin's robot holds R^0 before the first transition (power-up period plus
+    roll call, the manifest's ``first_transition_s``)."""
+    return max(m["timing"]["first_transition_s"] for m in build.manifest["modules"])
+
+
+def reference_simulator(build: Build) -> Simulator:
+    """``bstool simulate``'s simulator for ``build``'s robot, settling in R^0 as long as the
+    twin does before its first transition: the twin's path then starts from the same rest
+    pose (a 0.5 s settle leaves the robot still sliding, which shifts early paths by cm)."""
+    robot = build.manifest["robot"]
+    spec = RobotSpec(legs=robot["legs"], modules=robot["modules"], states=robot["states"])
+    return Simulator(spec, settle_time=settle_seconds(build))
 
 
 def check(

@@ -146,6 +146,8 @@ class TwinResult:
 
     @property
     def displacement(self) -> tuple[float, float]:
+        if len(self.path) < 2:  # run without physics: no path
+            return (0.0, 0.0)
         d = self.path[-1] - self.path[0]
         return float(d[0]), float(d[1])
 
@@ -206,7 +208,8 @@ class RobotTwin:
     :class:`hil_mock.eeprom.Eeprom`) replaces the build's images, so a robot flashed through the
     programming protocol runs exactly what was flashed. ``failed`` modules never run (silent on
     their links) and their servo holds the R^0 angle (the paper's failed module: a fixed state);
-    with ``limp_failed`` it goes limp instead. ``cut`` removes links.
+    with ``limp_failed`` it goes limp instead. ``cut`` removes links. ``noise`` is the chance that
+    a byte on a link is hit (half of the hits drop it, half flip one bit), drawn from ``seed``.
     """
 
     def __init__(
@@ -217,9 +220,16 @@ class RobotTwin:
         failed: Iterable[ModuleId | str] = (),
         limp_failed: bool = False,
         cut: Iterable[tuple[ModuleId, ModuleId]] = (),
+        noise: float = 0.0,
+        seed: int = 0,
         physics: bool = True,
     ) -> None:
         self.build = build
+        if not 0.0 <= noise <= 1.0:
+            raise InputError(f"link noise must be a probability in 0..1, got {noise}")
+        self.noise = noise
+        self.rng = np.random.default_rng(seed)
+        self.noise_events = {"flipped": 0, "dropped": 0}
         legs, modules = build.legs, build.modules
         self.order = [ModuleId(i, j) for i in range(legs) for j in range(modules)]
         self.failed = {
@@ -313,6 +323,12 @@ class RobotTwin:
 
     # ---- links and servos (called from the stamps' IO) ------------------------------------
     def _route(self, mid: ModuleId, pin: int, value: int, start_ns: int, mode: int) -> None:
+        if self.noise and self.rng.random() < self.noise:
+            if self.rng.random() < 0.5:  # the byte is lost (a start bit not seen)
+                self.noise_events["dropped"] += 1
+                return
+            value ^= 1 << int(self.rng.integers(8))  # one bit flipped on the wire
+            self.noise_events["flipped"] += 1
         for peer, peer_pin in self.wires.get((mid, pin), ()):
             stamp = self.stamps.get(peer)
             if stamp is not None:

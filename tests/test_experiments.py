@@ -230,3 +230,19 @@ def test_report_from_a_run_directory_and_a_controller(
     # a bad input leaves the old report untouched
     assert main(["report", str(tmp_path / "nope"), "-o", str(out), "-q"]) == 2
     assert (out / "index.html").read_text() == html
+
+
+def test_fitness_plot_puts_parasites_on_their_own_axis(tmp_path: Path) -> None:
+    from bstool.evolve.engine import HistoryRow
+    from bstool.experiments.plots import plot_fitness
+
+    rows = [
+        HistoryRow(0, 0.1, 0.05, "host", 4),
+        HistoryRow(0, 0.4, 0.2, "parasite", 0),
+        HistoryRow(1, 0.2, 0.1, "host", 8),
+        HistoryRow(1, 0.5, 0.3, "parasite", 0),
+    ]
+    for name in ("fit.png", "fit.svg"):
+        plot_fitness(tmp_path / name, {"run": rows})
+    assert _png(tmp_path / "fit.png")[0] > 100
+    assert (tmp_path / "fit.svg").read_text().lstrip().startswith("<?xml")

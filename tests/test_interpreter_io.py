@@ -15,8 +15,8 @@ from interpreter_asm import Asm, const, op, var
 from bstool.tokenizer.tokens import Binary, Instruction, VarSize
 from hil_mock.stamp import NotInTwin, SimpleEeprom, Stamp, StampIO, Status, timing
 
-VECTORS = Path(__file__).resolve().parents[2] / "shared" / "vectors" / "tokenizer"
-needs_vectors = pytest.mark.skipif(not VECTORS.is_dir(), reason="shared/vectors not present")
+VECTORS = Path(__file__).resolve().parent / "vectors" / "tokenizer"  # copied from ../shared
+needs_vectors = pytest.mark.skipif(not VECTORS.is_dir(), reason="tests/vectors/tokenizer missing")
 
 BAUD2400 = 1021
 W = VarSize.WORD

@@ -17,9 +17,9 @@ from hil_mock.eeprom import Eeprom
 from hil_mock.stamp import NotInTwin, SimpleEeprom, Stamp, Status
 from hil_mock.stamp.decoder import decode_image
 
-VECTORS = Path(__file__).resolve().parents[2] / "shared" / "vectors" / "tokenizer"  # beside main
+VECTORS = Path(__file__).resolve().parent / "vectors" / "tokenizer"  # copied from ../shared
 
-pytestmark = pytest.mark.skipif(not VECTORS.is_dir(), reason="shared/vectors not present")
+pytestmark = pytest.mark.skipif(not VECTORS.is_dir(), reason="tests/vectors/tokenizer missing")
 
 
 def load(name: str) -> Stamp:

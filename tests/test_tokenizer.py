@@ -10,7 +10,7 @@ import pytest
 
 from bstool.cli import main
 from bstool.errors import InputError, SourceError
-from bstool.tokenizer import tokenize_file, tokenize_source
+from bstool.tokenizer import SlotImage, tokenize_file, tokenize_source
 from bstool.tokenizer import tokens as T
 from bstool.tokenizer.lexer import INSTRUCTIONS_25, INSTRUCTIONS_COMMON
 from bstool.tokenizer.project import _Slot
@@ -19,7 +19,7 @@ HEAD = "' {$STAMP BS2sx}\n' {$PBASIC 2.5}\n"
 VECTORS = Path(__file__).parent / "vectors" / "tokenizer"
 
 
-def slot0(body: str, head: str = HEAD):  # type: ignore[no-untyped-def]
+def slot0(body: str, head: str = HEAD) -> SlotImage:
     return tokenize_source(head + body, "t.bsx").slots[0]
 
 
@@ -31,7 +31,7 @@ def error(body: str, head: str = HEAD) -> tuple[int | None, int | None, int | No
     return exc.code, exc.line, exc.column
 
 
-def stream(slot, start: int, count: int) -> str:  # type: ignore[no-untyped-def]
+def stream(slot: SlotImage, start: int, count: int) -> str:
     return slot.bits(start, count)
 
 
@@ -287,3 +287,61 @@ def test_conditional_select_ranges_and_nesting() -> None:
 def test_pbasic_version_and_port_as_constants() -> None:
     s = slot0("v CON $PBASIC\nm CON BS2SX\nPAUSE v + m\nEND\n")
     assert s.eeprom == slot0("PAUSE 250 + 4\nEND\n").eeprom  # not folded at run time
+
+
+# ---- number reading, DATA tables (bulk path) and the run-time stack model -----------------
+@pytest.mark.parametrize(
+    ("text", "base", "decimals", "expected"),
+    [
+        (b"123 ", 10, 0, (123, 3)),
+        (b"FFFF", 16, 0, (0xFFFF, 4)),
+        (b"0000000000000001 ", 2, 0, (1, 16)),
+        (b"2.5}", 10, 2, (250, 3)),
+        (b"2}", 10, 2, (200, 1)),
+        (b"65536", 10, 0, 109),
+        (b"00000000000000001", 10, 0, 108),
+        (b"99999999999999999", 10, 0, 109),  # too big wins over too long
+        (b"0.5", 10, 2, 186),
+        (b"G", 16, 0, 104),
+        (b"2", 2, 0, 105),
+    ],
+)
+def test_read_number(text: bytes, base: int, decimals: int, expected: object) -> None:
+    from bstool.tokenizer.diagnostics import Failure
+    from bstool.tokenizer.lexer import read_number
+
+    src = text + b"\x03"
+    if isinstance(expected, int):
+        with pytest.raises(Failure) as info:
+            read_number(src, 0, base, 0, decimals)
+        assert info.value.code == expected
+    else:
+        assert read_number(src, 0, base, 0, decimals) == expected
+
+
+def test_data_table_bulk_path_matches_item_by_item() -> None:
+    """A long continued DATA list (read in bulk) stores what one DATA line per item stores."""
+    values = [(i * 37) % 256 for i in range(600)]
+    items = [f"${v:02X}" if i % 3 else str(v) for i, v in enumerate(values)]
+    lines = ", ".join(items).replace(", $1", ",\n  $1").replace(", 2", ", ' note\n   2")
+    bulk = slot0(f"T DATA {lines}\nREAD T, B0\n")
+    single = slot0("".join(f"DATA {item}\n" for item in items) + "READ 0, B0\n")
+    assert bulk.eeprom == single.eeprom and bulk.data_bytes == len(values) == single.data_bytes
+
+
+def test_data_table_bulk_path_errors_point_at_the_item() -> None:
+    table = ", ".join(["1"] * 20)
+    assert error(f"DATA {table}\nDATA @5, {table}\n") == (115, 4, 10)
+    assert error(f"DATA @2040, {table}\n") == (114, 3, 37)
+    assert error("DATA 1, 2, 70000, 3\n") == (109, 3, 12)
+
+
+def test_stack_effect_of_items() -> None:
+    from bstool.tokenizer.expressions import _STACK_EFFECT
+
+    assert _STACK_EFFECT[T.Unary.ABS] == 0  # unary: replaces the top
+    assert _STACK_EFFECT[T.Binary.ADD] == -1 and _STACK_EFFECT[T.Binary.EQ] == -1
+    assert _STACK_EFFECT[T.CONSTANT_ITEM | 5] == 1  # constant pushes
+    assert _STACK_EFFECT[0x33] == 1 and _STACK_EFFECT[0x37] == 0  # read / indexed read
+    assert _STACK_EFFECT[0x3B] == 0 and _STACK_EFFECT[0x3F] == -1  # write / indexed write
+    assert error("B0 = 1 + (2 + (3 + (4 + (5 + (6 + (7 + (8 + 9)))))))\n")[0] == 144

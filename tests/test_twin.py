@@ -147,3 +147,30 @@ def test_build_errors(tmp_path: Path) -> None:
     (tmp_path / "manifest.json").write_text('{"format": "other"}')
     with pytest.raises(InputError, match=r"bstool\.build/1"):
         load_build(tmp_path)
+
+
+def test_twin_cli_video_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import subprocess
+    import sys
+
+    build = make_build(tmp_path)
+    video = tmp_path / "twin.mp4"
+    # a subprocess, so the headless GL backend is chosen before mujoco is imported
+    proc = subprocess.run(
+        [sys.executable, "-m", "bstool", "twin", str(build), "-T", "12", "--video", str(video),
+         "-q", "--timeout", "1"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    import imageio.v3 as iio
+
+    frames = iio.imread(video)
+    assert frames.shape[0] >= 5 and frames.shape[3] == 3 and frames.std() > 1.0
+
+    from bstool.cli import main
+
+    assert main(["twin", str(build), "--video", str(video), "--no-physics"]) == 2
+    assert main(["twin", str(tmp_path / "nope")]) == 2
+    assert "no manifest.json" in capsys.readouterr().err
+    assert main(["twin", str(build), "--cut", "0.1"]) == 2
+    assert "bad --cut" in capsys.readouterr().err

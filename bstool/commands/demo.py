@@ -71,9 +71,7 @@ def _demo(
     from bstool.compile import compile_controller
     from bstool.controllers import load_controller
     from bstool.moduleid import parse_module
-    from bstool.robot import RobotSpec
-    from bstool.sim.simulator import Simulator
-    from hil_mock.check import check
+    from hil_mock.check import check, reference_simulator
     from hil_mock.fleet import flash_fleet, make_fleet
     from hil_mock.robot import RobotTwin, load_build
 
@@ -110,8 +108,7 @@ def _demo(
         fleet.close()
 
     reference = ctrl.states(transitions, failed=fail_ids)
-    spec = RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k)
-    sim = Simulator(spec).run(reference)
+    sim = reference_simulator(build).run(reference)
     rep = check(build, run, reference, transitions, sim.distance)
     say("")
     say(f"{'':26}{'simulator':>14}{'twin (stamps)':>18}")

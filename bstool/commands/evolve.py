@@ -26,8 +26,26 @@ from bstool.evolve.engine import (
 )
 from bstool.evolve.fitness import Evaluator, EvaluatorFactory, PhysicsFitness, ToyFitness
 from bstool.evolve.problem import Problem
+from bstool.evolve.scoring import ROBUST_MODES, parasite_cells, parse_k
 
-_FIXED_ON_RESUME = ("model", "pop", "pc", "pm", "transitions", "coevol_gens", "seed", "fitness")
+_CELLS = Problem("ca1d").legs * Problem("ca1d").modules  # the robot bstool evolve builds
+
+_FIXED_ON_RESUME = (
+    "model",
+    "pop",
+    "pc",
+    "pm",
+    "transitions",
+    "coevol_gens",
+    "seed",
+    "fitness",
+    "robust",
+    "coevolve_faults",
+    "parasites",
+    "parasite_k",
+)
+DEFAULT_PARASITES = 4  # Q + 1 = 5 runs per host, the physics budget of --robust with n = 5
+DEFAULT_PARASITE_K = "1..2"
 
 
 def _cpus() -> int:
@@ -83,6 +101,29 @@ def factory_for(kind: str, problem: Problem, workers: int) -> EvaluatorFactory:
     type=click.Choice(["physics", "toy"]),
     help="physics (MuJoCo, default) or toy (a cheap stand-in to try the pipeline).",
 )
+@click.option(
+    "--robust",
+    type=click.Choice(ROBUST_MODES),
+    is_flag=False,
+    flag_value="mean",
+    help="Score each candidate over its n leg rotations: mean (default) or worst distance.",
+)
+@click.option(
+    "--coevolve-faults",
+    is_flag=True,
+    default=None,
+    help="Co-evolve a population of parasites (sets of failed modules) that hurt the hosts.",
+)
+@click.option(
+    "--parasites",
+    type=click.IntRange(min=2),
+    help=f"--coevolve-faults: parasite population size (default {DEFAULT_PARASITES}).",
+)
+@click.option(
+    "--parasite-k",
+    metavar="K|A..B",
+    help=f"--coevolve-faults: failed modules per parasite (default {DEFAULT_PARASITE_K}).",
+)
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 def command(
     model: str | None,
@@ -98,8 +139,14 @@ def command(
     Fitness is the disc's displacement after MAX_TRANS transitions (eq. 6). The run directory
     gets best.json (a controller file), history.csv and a checkpoint after every generation;
     Ctrl-C stops cleanly and `--resume DIR` continues to the same result.
+
+    --robust scores a candidate over its n leg rotations; --coevolve-faults scores hosts against
+    a co-evolving population of module failures (paper §6). See docs/evolution.md.
     """
     options["model"] = model
+    options["coevolve_faults"] = True if options.get("coevolve_faults") else None
+    if options.get("parasite_k") is not None:
+        options["parasite_k"] = list(parse_k(options["parasite_k"], _CELLS))
     if resume is not None:
         if out is not None and Path(out) != Path(resume):
             raise InputError("give either --out DIR (new run) or --resume DIR, not both")
@@ -141,6 +188,21 @@ def _new(model: str, options: dict[str, Any]) -> tuple[RunState, dict[str, Any]]
     def pick(name: str, default: Any) -> Any:
         return default if options.get(name) is None else options[name]
 
+    coevolve = bool(options.get("coevolve_faults"))
+    if not coevolve:
+        for name in ("parasites", "parasite_k"):
+            if options.get(name) is not None:
+                flag = "--" + name.replace("_", "-")
+                raise InputError(
+                    f"{flag} only applies with --coevolve-faults",
+                    hint=f"add --coevolve-faults, or drop {flag}",
+                )
+    elif options.get("robust") is not None:
+        raise InputError(
+            "--robust and --coevolve-faults do not combine",
+            hint="choose one scoring: rotations (--robust) or failures (--coevolve-faults)",
+        )
+    default_k = parse_k(DEFAULT_PARASITE_K, _CELLS)
     params = GAParams(
         pop=pick("pop", 50),
         gens=pick("gens", default_gens(model)),
@@ -149,6 +211,9 @@ def _new(model: str, options: dict[str, Any]) -> tuple[RunState, dict[str, Any]]
         transitions=pick("transitions", 30),
         coevol_gens=pick("coevol_gens", MAX_COEVOL_GENERATION),
         seed=pick("seed", secrets.randbits(32)),
+        robust=options.get("robust"),
+        parasites=pick("parasites", DEFAULT_PARASITES) if coevolve else 0,
+        parasite_k=tuple(pick("parasite_k", default_k)),
     )
     problem = Problem(model, transitions=params.transitions)
     return new_run(problem, params), {"fitness": pick("fitness", "physics")}
@@ -156,14 +221,25 @@ def _new(model: str, options: dict[str, Any]) -> tuple[RunState, dict[str, Any]]
 
 def _resume(directory: str, options: dict[str, Any]) -> tuple[RunState, dict[str, Any]]:
     state, extra = load_checkpoint(directory)
-    saved = {**state.params.to_json(), "model": state.problem.model, **extra}
+    p = state.params
+    saved = {
+        **p.to_json(),
+        "model": state.problem.model,
+        "robust": p.robust,
+        "coevolve_faults": p.coevolve_faults or None,
+        "parasites": p.parasites or None,
+        "parasite_k": list(p.parasite_k) if p.coevolve_faults else None,
+        **extra,
+    }
     for name in _FIXED_ON_RESUME:
         given = options.get(name)
         if given is not None and given != saved.get(name):
             flag = "MODEL" if name == "model" else "--" + name.replace("_", "-")
+            before = saved.get(name)
             raise InputError(
-                f"{flag} is {given!r} but the run in {directory} was started with "
-                f"{saved.get(name)!r}",
+                f"{flag} is {given!r} but the run in {directory} was started with {before!r}"
+                if before is not None
+                else f"the run in {directory} was started without {flag}",
                 hint="a resumed run keeps its settings; only --gens may be raised",
             )
     gens = options.get("gens")
@@ -175,6 +251,13 @@ def _resume(directory: str, options: dict[str, Any]) -> tuple[RunState, dict[str
     return state, extra
 
 
+def _mode(state: RunState) -> str:
+    p = state.params
+    if p.robust is not None:
+        return f" --robust {p.robust}"
+    return f" --coevolve-faults ({p.parasites} parasites)" if p.coevolve_faults else ""
+
+
 def _run(
     state: RunState, evaluator: Evaluator, directory: Path, extra: dict[str, Any], quiet: bool
 ) -> None:
@@ -183,7 +266,7 @@ def _run(
     bar = tqdm(
         total=state.total_steps,
         initial=state.step,
-        desc=f"evolve {state.problem.model}",
+        desc=f"evolve {state.problem.model}{_mode(state)}",
         unit="gen",
         file=sys.stderr,
         disable=quiet or not sys.stderr.isatty(),
@@ -226,3 +309,10 @@ def _run(
             f"evaluations {s['evaluations']}, cache hits {s['cache_hits']}, "
             f"offspring skipped {s['offspring_skipped']}/{s['offspring']} ({skipped:.1%})"
         )
+        if state.parasites is not None:
+            last = next(r for r in reversed(state.history) if r.population == "parasite")
+            worst = parasite_cells(state.parasites[0], state.problem.modules)
+            click.echo(
+                f"most harmful parasite: {' '.join(f'{i}.{j}' for i, j in worst)} failed "
+                f"(takes {last.best:.1%} of the hosts' distance on average)"
+            )

@@ -6,11 +6,8 @@ from pathlib import Path
 
 import click
 
-from bstool import fileio
 from bstool.errors import InputError
 from bstool.evolve.checkpoint import HISTORY, read_history
-
-_POPULATION_LABEL = {"main": "", "control": " control rule", "leg": " leg rule"}
 
 
 @click.command("plot-history")
@@ -33,31 +30,8 @@ def command(runs: tuple[str, ...], output: str, title: str) -> None:
         raise InputError(
             f"cannot write a plot as {output!r}", hint="name the output .png, .svg or .pdf"
         )
-    import matplotlib
+    from bstool.experiments.plots import plot_fitness
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 5))
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    curves = 0
-    for run_dir in runs:
-        rows = read_history(Path(run_dir) / HISTORY)
-        for pop in dict.fromkeys(r.population for r in rows):
-            mine = [r for r in rows if r.population == pop]
-            colour = colours[curves % len(colours)]
-            label = f"{Path(run_dir).name}{_POPULATION_LABEL.get(pop, ' ' + pop)}"
-            gens = [r.generation for r in mine]
-            ax.plot(gens, [r.best for r in mine], color=colour, label=f"{label} max")
-            ax.plot(gens, [r.mean for r in mine], color=colour, ls="--", label=f"{label} mean")
-            curves += 1
-    ax.set_xlabel("generation")
-    ax.set_ylabel("fitness (distance, m)")
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
-    fig.tight_layout()
-    with fileio.atomic_open(output, "wb") as fh:
-        fig.savefig(fh, format=suffix)
-    plt.close(fig)
+    histories = {Path(run_dir).name: read_history(Path(run_dir) / HISTORY) for run_dir in runs}
+    plot_fitness(output, histories, title)
     click.echo(f"wrote {output}")

@@ -30,6 +30,14 @@ from bstool.moduleid import ModuleId, parse_module
     help="Cut the link between modules A and B (e.g. 0.1-0.2); repeatable.",
 )
 @click.option(
+    "--link-noise",
+    type=click.FloatRange(0, 1),
+    default=0.0,
+    show_default=True,
+    help="Chance that a byte on a link is dropped or has a bit flipped.",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the link noise.")
+@click.option(
     "--controller",
     type=click.Path(dir_okay=False),
     help="Controller to compare with (default: the build's controller.json).",
@@ -42,6 +50,18 @@ from bstool.moduleid import ModuleId, parse_module
     "loading the images directly).",
 )
 @click.option("--no-physics", is_flag=True, help="Only the stamps (faster; no path).")
+@click.option(
+    "--video",
+    type=click.Path(dir_okay=False),
+    help="Render the twin's robot offscreen to an MP4 file.",
+)
+@click.option(
+    "--timeout",
+    "timeout_s",
+    type=float,
+    default=None,
+    help="Stop after this many seconds of virtual time (default: generous).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(
@@ -50,9 +70,13 @@ def command(
     failed: tuple[str, ...],
     limp_failed: bool,
     cut: tuple[str, ...],
+    link_noise: float,
+    seed: int,
     controller: str | None,
     via_flash: bool,
     no_physics: bool,
+    video: str | None,
+    timeout_s: float | None,
     as_json: bool,
     quiet: bool,
 ) -> None:
@@ -60,6 +84,12 @@ def command(
     virtual BS2sx, the modules wired as WIRING.md says, each servo driving the simulated robot.
     Prints each module's states against `bstool states`, the disc's distance against `bstool
     simulate`, the measured transition period and servo-pulse gaps against the manifest."""
+    if video and no_physics:
+        raise click.UsageError("--video needs physics: drop --no-physics")
+    if video:
+        from bstool.sim.gl import configure_headless_gl
+
+        configure_headless_gl()  # before mujoco is imported
     from hil_mock.robot import RobotTwin, load_build
 
     b = load_build(build)
@@ -79,20 +109,18 @@ def command(
         eeproms = dict(fleet.eeproms)
     try:
         twin = RobotTwin(b, eeproms=eeproms, failed=fail_ids, limp_failed=limp_failed,
-                         cut=cuts, physics=not no_physics)  # fmt: skip
-        result = _run(twin, transitions, quiet or as_json)
+                         cut=cuts, noise=link_noise, seed=seed, physics=not no_physics)  # fmt: skip
+        result = _run(twin, transitions, quiet or as_json, video, timeout_s)
     finally:
         if fleet is not None:
             fleet.close()
     reference = ctrl.states(transitions, failed=fail_ids) if ctrl is not None else None
     sim_distance = None
     if ctrl is not None and not no_physics:
-        from bstool.robot import RobotSpec
-        from bstool.sim.simulator import Simulator
+        from hil_mock.check import reference_simulator
 
-        spec = RobotSpec(legs=b.legs, modules=b.modules, states=ctrl.k)
         assert reference is not None
-        sim_distance = Simulator(spec).run(reference).distance
+        sim_distance = reference_simulator(b).run(reference).distance
     from hil_mock.check import check
 
     report = check(b, result, reference, transitions, sim_distance)
@@ -109,12 +137,29 @@ def command(
         sys.exit(1)
 
 
-def _run(twin, transitions: int, quiet: bool):
+def _run(twin, transitions: int, quiet: bool, video: str | None, timeout_s: float | None):
     from tqdm import tqdm
 
     with tqdm(total=transitions + 1, unit="transition", disable=quiet or None,
               desc="twin", file=sys.stderr) as bar:  # fmt: skip
-        return twin.run(transitions, progress=bar.update)
+        if not video:
+            return twin.run(transitions, progress=bar.update, timeout_s=timeout_s)
+        from bstool.sim.video import VideoRecorder
+        from hil_mock.robot import CHUNK_STEPS, RobotTwin
+
+        model = twin.sim.model
+        with VideoRecorder(model, video) as rec:
+            every = max(1, round(rec.steps_per_frame(model) / CHUNK_STEPS))
+            chunks = [0]
+
+            def on_chunk(t: RobotTwin) -> None:
+                chunks[0] += 1
+                if chunks[0] % every == 0 and t.sim is not None:
+                    rec.frame(t.sim.data)
+
+            return twin.run(
+                transitions, progress=bar.update, on_chunk=on_chunk, timeout_s=timeout_s
+            )
 
 
 def _controller(root: Path, given: str | None):

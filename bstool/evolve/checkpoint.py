@@ -117,6 +117,8 @@ def save_checkpoint(state: RunState, path: Path, extra: dict[str, Any]) -> None:
         arrays["best_row"] = np.packbits(state.best_row)
     if state.best_partner is not None:
         arrays["best_partner"] = np.packbits(state.best_partner)
+    if state.parasites is not None:
+        arrays["parasites"] = state.parasites.astype(np.int16)
     with fileio.atomic_open(path, "wb") as fh:
         np.savez(fh, **arrays)  # type: ignore[arg-type]
 
@@ -161,6 +163,8 @@ def load_checkpoint(out: str | os.PathLike[str]) -> tuple[RunState, dict[str, An
                 state.best_partner = bits("best_partner", partner)
         state.offspring = int(meta["offspring"])
         state.offspring_skipped = int(meta["offspring_skipped"])
+        if "parasites" in data:
+            state.parasites = data["parasites"].astype(np.int16)
         extra = dict(meta.get("extra", {}))
     except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         raise InputError(

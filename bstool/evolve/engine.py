@@ -17,8 +17,18 @@ import numpy as np
 from bstool.controllers import Controller
 from bstool.controllers.reference import NN_MODELS
 from bstool.evolve.fitness import Evaluator, FitnessCache
-from bstool.evolve.ga import Bits, best_index, clean_fitness, next_generation
+from bstool.evolve.ga import Bits, best_index, next_generation
 from bstool.evolve.problem import Problem
+from bstool.evolve.scoring import (
+    ROBUST_MODES,
+    Parasites,
+    Scored,
+    new_parasites,
+    next_parasites,
+    score_faults,
+    score_plain,
+    score_robust,
+)
 
 MAX_COEVOL_GENERATION = 20  # §3.4
 
@@ -45,9 +55,28 @@ class GAParams:
     transitions: int = 30
     coevol_gens: int = MAX_COEVOL_GENERATION
     seed: int = 0
+    robust: str | None = None  # --robust: "mean" | "worst" over the n leg rotations
+    parasites: int = 0  # --coevolve-faults: parasite population size (0 = off)
+    parasite_k: tuple[int, int] = (1, 2)  # failed modules per parasite, low..high
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "parasite_k", tuple(int(x) for x in self.parasite_k))
+
+    @property
+    def coevolve_faults(self) -> bool:
+        return self.parasites > 0
 
     def to_json(self) -> dict[str, Any]:
-        return asdict(self)
+        """The parameters; the options of --robust / --coevolve-faults only when in use, so a
+        plain run's "ga" is unchanged."""
+        out = asdict(self)
+        if self.robust is None:
+            del out["robust"]
+        if not self.coevolve_faults:
+            del out["parasites"], out["parasite_k"]
+        else:
+            out["parasite_k"] = list(self.parasite_k)
+        return out
 
 
 @dataclass
@@ -75,6 +104,7 @@ class RunState:
     best_partner: Bits | None = None
     offspring: int = 0
     offspring_skipped: int = 0
+    parasites: Parasites | None = None  # --coevolve-faults: (Q, K_max) module indices
 
     @property
     def total_steps(self) -> int:
@@ -91,6 +121,10 @@ class RunState:
             return "main"
         c = self.params.coevol_gens
         return "leg" if step % (2 * c) < c else "control"
+
+    def label(self, name: str) -> str:
+        """history.csv's population column: "host" for a fault co-evolution's main population."""
+        return "host" if name == "main" and self.params.coevolve_faults else name
 
     def best_controller(self) -> Controller | None:
         if self.best_row is None:
@@ -118,6 +152,12 @@ def new_run(problem: Problem, params: GAParams) -> RunState:
     """Random initial population(s); for ca2ddiff the first 'best' control rule is a random one."""
     if params.pop < 2:
         raise ValueError("population size must be at least 2")
+    if params.robust is not None and params.robust not in ROBUST_MODES:
+        raise ValueError(f"robust mode must be one of {ROBUST_MODES}")
+    if params.robust is not None and params.coevolve_faults:
+        raise ValueError("--robust and --coevolve-faults do not combine")
+    if params.parasites == 1:
+        raise ValueError("the parasite population needs at least 2 members")
     rng = np.random.default_rng(params.seed)
     pops = {
         name: rng.integers(0, 2, (params.pop, problem.length(name)), dtype=np.uint8)
@@ -126,7 +166,21 @@ def new_run(problem: Problem, params: GAParams) -> RunState:
     state = RunState(problem, params, rng, pops)
     if problem.model == "ca2ddiff":
         state.best_of["control"] = pops["control"][int(rng.integers(params.pop))].copy()
+    if params.coevolve_faults:  # drawn last: a plain run's random stream is unchanged
+        cells = problem.legs * problem.modules
+        state.parasites = new_parasites(params.parasites, params.parasite_k, cells, rng)
     return state
+
+
+def score(state: RunState, name: str, partner: Bits | None, evaluator: Evaluator) -> Scored:
+    """Fitness of population ``name`` under the run's scoring mode (one evaluator call)."""
+    p, bits = state.params, state.populations[name]
+    args = (state.problem, name, bits, partner, state.cache, evaluator)
+    if p.robust is not None:
+        return score_robust(*args, p.robust)
+    if state.parasites is not None:
+        return score_faults(*args, state.parasites)
+    return score_plain(*args)
 
 
 def evolve_step(state: RunState, evaluator: Evaluator) -> HistoryRow:
@@ -135,24 +189,32 @@ def evolve_step(state: RunState, evaluator: Evaluator) -> HistoryRow:
     partner_name = state.problem.partner_of(name)
     partner = state.best_of[partner_name] if partner_name else None
     bits = state.populations[name]
-    seqs = state.problem.sequences(name, bits, partner)
-    raw, known, paid = state.cache.evaluate(seqs, evaluator)
-    fitness = clean_fitness(raw)
-    generation = sum(1 for r in state.history if r.population == name)
+    scored = score(state, name, partner, evaluator)
+    fitness, known = scored.fitness, scored.known
+    label = state.label(name)
+    generation = sum(1 for r in state.history if r.population == label)
     if generation > 0:
         state.offspring += len(bits) - 1
         state.offspring_skipped += int(known[1:].sum())
-    row = HistoryRow(generation, float(fitness.max()), float(fitness.mean()), name, paid)
+    row = HistoryRow(generation, float(fitness.max()), float(fitness.mean()), label, scored.paid)
     state.history.append(row)
     i = best_index(fitness)
     state.best_of[name] = bits[i].copy()
-    if fitness[i] > state.best_fitness:
+    # Against parasites, fitness depends on the parasites of the moment: scores of different
+    # generations are not comparable, so the best is the best of the latest generation.
+    if fitness[i] > state.best_fitness or state.parasites is not None:
         state.best_fitness = float(fitness[i])
         state.best_name = name
         state.best_row = bits[i].copy()
         state.best_partner = None if partner is None else partner.copy()
     p = state.params
     state.populations[name] = next_generation(bits, fitness, p.pc, p.pm, state.rng)
+    if state.parasites is not None and scored.parasite_fitness is not None:
+        pf = scored.parasite_fitness
+        pgen = sum(1 for r in state.history if r.population == "parasite")
+        state.history.append(HistoryRow(pgen, float(pf.max()), float(pf.mean()), "parasite", 0))
+        cells = state.problem.legs * state.problem.modules
+        state.parasites = next_parasites(state.parasites, pf, p.parasite_k, cells, state.rng)
     state.step += 1
     return row
 

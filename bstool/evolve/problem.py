@@ -7,6 +7,7 @@ leg rule); a candidate of one is always run together with a partner from the oth
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -58,19 +59,26 @@ class Problem:
         rules = np.stack(np.broadcast_arrays(cr, lr), axis=1)
         return initial, rules
 
-    def sequences(self, name: str, bits: Bits, partner: Bits | None = None) -> Sequences:
-        """State sequences (P, T+1, n, m) of the population ``bits`` (P, L)."""
+    def sequences(
+        self,
+        name: str,
+        bits: Bits,
+        partner: Bits | None = None,
+        failed: Iterable[tuple[int, int]] = (),
+    ) -> Sequences:
+        """State sequences (P, T+1, n, m) of the population ``bits`` (P, L); ``failed``
+        (leg, module) cells keep their R^0 state."""
         T = self.transitions
         if self.model in NN_MODELS:
             leads, weights = ch.decode_nn(bits, self.legs, self.modules)
-            return nn_sequences(self.model, leads, weights, T)
+            return nn_sequences(self.model, leads, weights, T, failed)
         if self.model == "ca2ddiff":
             assert partner is not None
             pair = (bits, partner[None]) if name == "control" else (partner[None], bits)
             initial, rules = self._ca2ddiff(*pair)
-            return ca_sequences(self.model, initial, rules, T)
+            return ca_sequences(self.model, initial, rules, T, failed)
         initial, rule = ch.decode_ca(bits, self.legs, self.modules)
-        return ca_sequences(self.model, initial, rule, T)
+        return ca_sequences(self.model, initial, rule, T, failed)
 
     def controller(
         self, name: str, row: Bits, partner: Bits | None = None, **meta: Any

@@ -101,23 +101,49 @@ def plot_distance_curves(
     _save(fig, path)
 
 
-def plot_fitness(path: str | os.PathLike[str], histories: Mapping[str, Sequence[object]]) -> None:
+_POPULATION_LABEL = {"main": "", "control": " control rule", "leg": " leg rule"}
+
+
+def plot_fitness(
+    path: str | os.PathLike[str],
+    histories: Mapping[str, Sequence[object]],
+    title: str = "Fitness against generation",
+) -> None:
     """Maximum (solid) and mean (dashed) fitness against generation, several runs overlaid
-    (paper Figs 7, 9–11, 15–16). Rows are ``HistoryRow``s (generation, best, mean, population);
-    co-evolution runs draw one pair of lines per population."""
-    fig = _figure(6.5, 4.2)
+    (paper Figs 7, 9–11, 15–16). Rows are ``HistoryRow``s (generation, best, mean,
+    population); co-evolution runs draw one pair of curves per population. The format comes
+    from the file's suffix (.png, .svg, .pdf)."""
+    fig = _figure(8.0, 5.0)
     ax = fig.add_subplot()
+    harm = None  # parasites (--coevolve-faults) score a fraction of distance lost: own axis
+    colours = [f"C{i}" for i in range(10)]
+    curves = 0
     for name, rows in histories.items():
-        populations = sorted({getattr(r, "population", "") for r in rows})
-        for pop in populations:
-            mine = [r for r in rows if getattr(r, "population", "") == pop]
+        for pop in dict.fromkeys(getattr(r, "population", "main") for r in rows):
+            mine = [r for r in rows if getattr(r, "population", "main") == pop]
+            colour = colours[curves % len(colours)]
+            label = f"{name}{_POPULATION_LABEL.get(pop, ' ' + pop)}"
             gens = [getattr(r, "generation") for r in mine]  # noqa: B009
-            label = name if len(populations) == 1 else f"{name} [{pop}]"
-            (line,) = ax.plot(gens, [getattr(r, "best") * 100 for r in mine], label=label)  # noqa: B009
-            ax.plot(gens, [getattr(r, "mean") * 100 for r in mine], "--", color=line.get_color())  # noqa: B009
+            scale, target = 100.0, ax
+            if pop == "parasite":
+                harm = harm or ax.twinx()
+                scale, target = 1.0, harm
+            best = [getattr(r, "best") * scale for r in mine]  # noqa: B009
+            mean = [getattr(r, "mean") * scale for r in mine]  # noqa: B009
+            target.plot(gens, best, color=colour, ls=":" if harm is target else "-",
+                        label=f"{label} max")  # fmt: skip
+            target.plot(gens, mean, color=colour, ls="-." if harm is target else "--",
+                        label=f"{label} mean")  # fmt: skip
+            curves += 1
+    if harm is not None:
+        harm.set_ylabel("parasites: fraction of distance lost")
+        harm.legend(fontsize="small", loc="lower right")
     ax.set_xlabel("generation")
-    ax.set_ylabel("fitness: distance (cm); solid max, dashed mean")
-    ax.set_title("Fitness against generation")
-    ax.legend(fontsize=8)
+    ax.set_ylabel("fitness: distance after MAX_TRANS (cm)")
+    ax.set_title(title)
     ax.grid(True, linewidth=0.3)
-    _save(fig, path)
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    suffix = os.fspath(path).rsplit(".", 1)[-1].lower()
+    with fileio.atomic_open(path, "wb") as fh:
+        fig.savefig(fh, format=suffix if suffix in ("svg", "pdf") else "png")

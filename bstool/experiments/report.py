@@ -19,7 +19,7 @@ from bstool.experiments import common
 from bstool.experiments.extrapolate import reinit_states
 from bstool.experiments.mobility import SingleFaults, distances_with, single_failures
 from bstool.experiments.paths import distance_curve, path_shape
-from bstool.experiments.robustness import rotation_spread
+from bstool.experiments.robustness import perturbation_spread, rotation_spread
 
 Progress = Callable[[str], None]
 
@@ -93,8 +93,9 @@ def build_report(
                 base = ev.evaluate([c.states(transitions)])[0]
                 say(f"{e.name}: {c.legs * c.modules} single failures")
                 f = single_failures(c, evaluate, transitions)
-                say(f"{e.name}: leg rotations")
+                say(f"{e.name}: leg rotations and perturbed starts")
                 spread = rotation_spread(c, evaluate, transitions)
+                perturbed = perturbation_spread(c, e.loaded.spec, transitions, samples=3)
             faults[e.name] = f
             runs.append((e.name, base))
             curves = {"plain": distance_curve(plain.path), "reinit": distance_curve(reinit.path)}
@@ -119,6 +120,7 @@ def build_report(
                     "extrapolation": {k: v.tolist() for k, v in curves.items()},
                     "extrapolation_figure": ext_png,
                     "rotation": spread.to_json(),
+                    "perturbation": perturbed.to_json(),
                     "history": [vars(r) for r in e.history] if e.history else None,
                 }
             )

@@ -22,6 +22,83 @@ FPS = 25  # 40 ms per frame = 20 steps of 2 ms: frames fall exactly on physics s
 WIDTH, HEIGHT = 480, 272  # multiples of 16 for H.264
 
 
+class VideoRecorder:
+    """Offscreen frames of a MuJoCo model into an H.264 MP4, written atomically on success.
+
+    >>> with VideoRecorder(model, "run.mp4") as rec:   # doctest: +SKIP
+    ...     rec.frame(data)                            # once per 1/fps seconds of physics
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        path: str | os.PathLike[str],
+        fps: int = FPS,
+        size: tuple[int, int] = (WIDTH, HEIGHT),
+    ) -> None:
+        import imageio_ffmpeg
+
+        self.path = path
+        self.fps = fps
+        self.frames = 0
+        width, height = size
+        try:
+            self.renderer = mujoco.Renderer(model, height, width)
+        except Exception as exc:  # GL context creation fails without a display or OSMesa
+            raise InputError(
+                f"cannot render offscreen: {exc}",
+                hint="install libosmesa6 and set MUJOCO_GL=osmesa (bstool does this itself when "
+                "no display is configured and mujoco is not yet imported)",
+            ) from None
+        self.camera = mujoco.MjvCamera()
+        self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+        self.camera.distance = 1.3
+        self.camera.elevation = -35.0
+        self.camera.azimuth = 90.0
+        self.disc = model.body("disc").id
+        # ffmpeg needs a file name: encode into a private temporary directory, then write the
+        # target atomically with fileio (videos are a few MB).
+        self._tmp = tempfile.TemporaryDirectory(prefix="bstool-video-")
+        self._scratch = Path(self._tmp.name) / "run.mp4"
+        self._writer = imageio_ffmpeg.write_frames(
+            str(self._scratch),
+            (width, height),
+            fps=fps,
+            codec="libx264",
+            quality=7,
+            macro_block_size=16,
+            ffmpeg_log_level="error",
+            output_params=["-movflags", "+faststart"],
+        )
+        self._writer.send(None)
+
+    def steps_per_frame(self, model: mujoco.MjModel) -> int:
+        return max(1, round(1.0 / (self.fps * model.opt.timestep)))
+
+    def frame(self, data: mujoco.MjData) -> None:
+        """Render the scene as it is in ``data``, the camera following the disc."""
+        self.camera.lookat[:] = data.xpos[self.disc]
+        self.renderer.update_scene(data, self.camera)
+        self._writer.send(np.ascontiguousarray(self.renderer.render()))
+        self.frames += 1
+
+    def close(self, keep: bool = True) -> None:
+        """Finish the file; write it to ``path`` only if ``keep`` (nothing half-written)."""
+        try:
+            self._writer.close()
+            if keep:
+                fileio.write_bytes(self.path, self._scratch.read_bytes())
+        finally:
+            self.renderer.close()
+            self._tmp.cleanup()
+
+    def __enter__(self) -> VideoRecorder:
+        return self
+
+    def __exit__(self, exc_type: object, *rest: object) -> None:
+        self.close(keep=exc_type is None)
+
+
 def render_video(
     sim: Simulator,
     states: np.ndarray,
@@ -31,59 +108,17 @@ def render_video(
     progress: Callable[[int], None] | None = None,
 ) -> SimResult:
     """Run ``states`` (validated) and write an H.264 MP4; returns the run's result."""
-    import imageio_ffmpeg
+    data = mujoco.MjData(sim.model)
+    with VideoRecorder(sim.model, path, fps, size) as rec:
 
-    width, height = size
-    model = sim.model
-    data = mujoco.MjData(model)
-    chunk = max(1, round(1.0 / (fps * model.opt.timestep)))
-    try:
-        renderer = mujoco.Renderer(model, height, width)
-    except Exception as exc:  # GL context creation fails without a display or OSMesa
-        raise InputError(
-            f"cannot render offscreen: {exc}",
-            hint="install libosmesa6 and set MUJOCO_GL=osmesa (bstool does this itself when "
-            "no display is configured and mujoco is not yet imported)",
-        ) from None
-    camera = mujoco.MjvCamera()
-    camera.type = mujoco.mjtCamera.mjCAMERA_FREE
-    camera.distance = 1.3
-    camera.elevation = -35.0
-    camera.azimuth = 90.0
-    disc = model.body("disc").id
+        def frame(d: mujoco.MjData) -> None:
+            rec.frame(d)
+            if progress:
+                progress(1)
 
-    # ffmpeg needs a file name: encode into a private temporary directory, then write the
-    # target atomically with fileio (videos are a few MB).
-    try:
-        with tempfile.TemporaryDirectory(prefix="bstool-video-") as tmp:
-            scratch = Path(tmp) / "run.mp4"
-            writer = imageio_ffmpeg.write_frames(
-                str(scratch),
-                (width, height),
-                fps=fps,
-                codec="libx264",
-                quality=7,
-                macro_block_size=16,
-                ffmpeg_log_level="error",
-                output_params=["-movflags", "+faststart"],
-            )
-            writer.send(None)
-
-            def frame(d: mujoco.MjData) -> None:
-                camera.lookat[:] = d.xpos[disc]
-                renderer.update_scene(d, camera)
-                writer.send(np.ascontiguousarray(renderer.render()))
-                if progress:
-                    progress(1)
-
-            try:
-                result = sim.run_validated(states, data, on_chunk=frame, chunk_steps=chunk)
-            finally:
-                writer.close()
-            fileio.write_bytes(path, scratch.read_bytes())
-    finally:
-        renderer.close()
-    return result
+        return sim.run_validated(
+            states, data, on_chunk=frame, chunk_steps=rec.steps_per_frame(sim.model)
+        )
 
 
 def frame_count(sim: Simulator, transitions: int, fps: int = FPS) -> int:

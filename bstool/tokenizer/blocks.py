@@ -14,88 +14,99 @@ from __future__ import annotations
 from bstool.tokenizer.diagnostics import Failure
 from bstool.tokenizer.expressions import Bits
 from bstool.tokenizer.lexer import OP_EQ, K
-from bstool.tokenizer.statements import ADDR, MAX_EXITS, NEST_LIMIT, Nest, Statements
+from bstool.tokenizer.statements import ADDR, MAX_EXITS, NEST_LIMIT, Block, Nest, Statements
 from bstool.tokenizer.tokens import Binary, Instruction
 
 
 class Blocks(Statements):
     # ---- IF / ELSEIF / ELSE / ENDIF -----------------------------------------------------
     def op_if(self) -> None:
-        self._if(elseif=False)
-
-    def op_elseif(self) -> None:
-        self._if(elseif=True)
-
-    def _classic_if(self) -> bool:
-        """IF c THEN label (or THEN GOTO label alone): a plain IF instruction."""
-        here = self.idx
-        el = self.get()
-        while el.kind not in (K.THEN, K.END) and self.more():
-            el = self.get()
-        after = self.get()
-        classic = False
-        if el.kind is K.THEN:
-            if after.kind in (K.LABEL, K.UNDEF):
-                classic = True
-            elif after.kind is K.INSTRUCTION and after.value == "GOTO":
-                self.get()
-                classic = self.get().kind is K.END
-        self.idx = here
-        return classic
-
-    def _if(self, elseif: bool) -> None:
-        enhanced = self.lang25
-        if not elseif:
-            if self.counts["if"] == NEST_LIMIT:
-                raise self.fail(158)
-            self.blocks[self.depth].element = self.idx - 1
-            if self._classic_if():
-                enhanced = False
-        else:
-            if self.counts["if"] == 0:
-                raise self.fail(228)
-            block = self.top
-            slot = next((i for i, at in enumerate(block.exits) if at == 0), MAX_EXITS)
-            if slot == MAX_EXITS:
-                raise self.fail(229)
-            if block.kind is not Nest.IF:
-                self.nesting_error()
-                return
-            if block.in_else and not block.single_line:
-                raise self.fail(230)
-            self.emit_code(Instruction.GOTO)
-            self.image.pos += ADDR
-            self.patch_skip()
-            block.exits[slot] = self.image.pos - ADDR
-            self.depth -= 1
-            self.counts["if"] -= 1
-        self.stack_idx = 0
-        self.condition()
-        self.emit_exp(0, True)
-        self.emit_code(Instruction.IF)
-        self.expect(K.THEN, 151)
-        if not enhanced:
-            if self.lang25:
-                nxt = self.peek()
-                if nxt.kind is K.INSTRUCTION and nxt.value == "GOTO":
-                    self.idx += 1
+        if self.counts["if"] == NEST_LIMIT:
+            raise self.fail(158)
+        self.blocks[self.depth].element = self.idx - 1
+        if not self.lang25 or self._is_classic_if():
+            self._test_then()
+            if self.lang25 and self._next_is("GOTO"):
+                self.idx += 1
             self.address()
             return
+        self._test_then()
         block = self.blocks[self.depth]
-        if not elseif:
-            block.kind = Nest.IF
-            block.single_line = block.awaiting = self.peek().kind is not K.END
-            block.in_else = False
-        elif block.single_line and not block.in_else:
-            block.awaiting = True
-        main = self.reserve()
-        self.emit_code(Instruction.GOTO)
-        block.skip = self.reserve()
-        self.patch_here(main)
-        if not elseif:
-            block.exits = [0] * MAX_EXITS
+        block.kind = Nest.IF
+        block.single_line = block.awaiting = self.peek().kind is not K.END
+        block.in_else = False
+        self._skip_unless_test(block)
+        block.exits = [0] * MAX_EXITS
         self.depth += 1
         self.counts["if"] += 1
+
+    def op_elseif(self) -> None:
+        """ELSEIF: the branch before jumps to the end of the IF; the test is a new IF layout
+        in the same block (its exits collect those jumps)."""
+        if self.counts["if"] == 0:
+            raise self.fail(228)
+        block = self.top
+        slot = next((i for i, at in enumerate(block.exits) if at == 0), MAX_EXITS)
+        if slot == MAX_EXITS:
+            raise self.fail(229)
+        if block.kind is not Nest.IF:
+            self.nesting_error()
+            return
+        if block.in_else and not block.single_line:
+            raise self.fail(230)
+        self.emit_code(Instruction.GOTO)
+        block.exits[slot] = self.reserve()
+        self.patch_skip()
+        self.depth -= 1
+        self.counts["if"] -= 1
+        self._test_then()
+        if block.single_line and not block.in_else:
+            block.awaiting = True
+        self._skip_unless_test(block)
+        self.depth += 1
+        self.counts["if"] += 1
+
+    def _next_is(self, instruction: str) -> bool:
+        nxt = self.peek()
+        return nxt.kind is K.INSTRUCTION and nxt.value == instruction
+
+    def _is_classic_if(self) -> bool:
+        """``IF c THEN label`` (or ``THEN GOTO label`` alone): the plain IF instruction.
+
+        Looks ahead without moving the cursor.
+        """
+        here = self.idx
+        try:
+            el = self.get()
+            while el.kind not in (K.THEN, K.END) and self.more():
+                el = self.get()
+            target = self.get()
+            if el.kind is not K.THEN:
+                return False
+            if target.kind in (K.LABEL, K.UNDEF):
+                return True
+            if not (target.kind is K.INSTRUCTION and target.value == "GOTO"):
+                return False
+            self.get()
+            return self.get().kind is K.END
+        finally:
+            self.idx = here
+
+    def _test_then(self) -> None:
+        """``condition THEN``: the condition pushed, then the IF instruction."""
+        self.stack_idx = 0
+        self.condition()
+        self.emit_expr(True)
+        self.emit_code(Instruction.IF)
+        self.expect(K.THEN, 151)
+
+    def _skip_unless_test(self, block: Block) -> None:
+        """The IF instruction's target (the statements right after) and a GOTO past them,
+        patched when the branch ends (``block.skip``)."""
+        body = self.reserve()
+        self.emit_code(Instruction.GOTO)
+        block.skip = self.reserve()
+        self.patch_here(body)
 
     def op_else(self) -> None:
         if self.counts["if"] == 0:
@@ -142,7 +153,7 @@ class Blocks(Statements):
             raise self.fail(166)
         self.stack_idx = 0
         self.condition()
-        self.emit_exp(0, True)
+        self.emit_expr(True)
         self.emit_code(Instruction.IF)
         if el.kind is K.UNTIL:
             block.skip = self.reserve()
@@ -172,7 +183,7 @@ class Blocks(Statements):
                 raise self.fail(165)
             self.stack_idx = 0
             self.condition()
-            self.emit_exp(0, True)
+            self.emit_expr(True)
             self.emit_code(Instruction.IF)
             if el.kind is K.WHILE:
                 self._emit_address(block.jump)
@@ -230,27 +241,22 @@ class Blocks(Statements):
         resume = self.idx
         self.idx = block.element + 1
         start = self.idx
-        self.stack_idx = 2
-        self.read_into(1)
+        counter_read = self.held_variable(2, write=False)
         self.idx = start
-        self.stack_idx = 3
-        self.write_into(2)
+        counter_write = self.held_variable(3, write=True)
         self.idx += 1  # '='
-        self.stack_idx = 1
-        self.value_into(3)
+        first = self.held_value(1)
         self.idx += 1  # TO
-        self.stack_idx = 0
-        self.value_emit(True)
-        self.emit_exp(3, True)
+        self.pushed_value(0)  # the limit
+        self.emit_bits(first, True)
         self.emit_code(Instruction.NEXT)
-        self.emit_exp(1, False)
+        self.emit_bits(counter_read, False)
         if self.get().kind is not K.END:
-            self.stack_idx = 3
-            self.value_emit(True)
+            self.pushed_value(3)  # STEP
         else:
             self.emit_constant(1, True)
         self.emit(1, 0)
-        self.emit_exp(2, False)
+        self.emit_bits(counter_write, False)
         self.emit(1, 0)
         self._emit_address(block.jump)
         self.patch_exits()
@@ -281,16 +287,16 @@ class Blocks(Statements):
         """``<SELECT expression> op <CASE value at case_at>`` as a condition."""
         self.idx = select_at
         self.condition(case_at, op)
-        return self.exp[0]
+        return self.expr
 
     def _joined(self, left: Bits, right: Bits, op: int) -> Bits:
         """The condition ``left op right`` from two compiled conditions."""
         try:
-            self.exp[0] = left.add(1, 1).join(right)
+            self.expr = left.add(1, 1).join(right)
         except Failure:
             raise self.fail(144) from None
         self.item(op)
-        return self.exp[0]
+        return self.expr
 
     def op_case(self) -> None:
         """CASE list: IF (any item matches), body; GOTO next CASE; a new CASE first closes the
@@ -334,7 +340,7 @@ class Blocks(Statements):
         if el.kind is not K.END:
             raise self.fail(130)
         self.idx -= 1
-        self.emit_exp(0, True)
+        self.emit_expr(True)
         self.emit_code(Instruction.IF)
         body = self.reserve()
         self.emit_code(Instruction.GOTO)

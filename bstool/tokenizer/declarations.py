@@ -12,6 +12,7 @@ from __future__ import annotations
 from bstool.tokenizer import tokens
 from bstool.tokenizer.diagnostics import Failure
 from bstool.tokenizer.expressions import Compiler
+from bstool.tokenizer.image import DEFINED_DATA
 from bstool.tokenizer.lexer import OP_SUB, Element, K
 
 # operators allowed in a constant declaration, as functions of two 16-bit words
@@ -53,12 +54,14 @@ class Declarations(Compiler):
         # fast path: a lone number (most DATA items)
         elements, dead, n = self.elements, self.dead, len(self.elements)
         i = self.idx
-        while i < n and dead[i]:
-            i += 1
+        if i < n and dead[i]:  # skip cancelled elements
+            i = dead.find(0, i)
+            i = n if i < 0 else i
         if i < n and elements[i].kind is K.CONST:
             j = i + 1
-            while j < n and dead[j]:
-                j += 1
+            if j < n and dead[j]:  # skip cancelled elements
+                j = dead.find(0, j)
+                j = n if j < 0 else j
             if j >= n or elements[j].kind is not K.BINOP:
                 el = elements[i]
                 self.idx = i + 1
@@ -116,8 +119,9 @@ class Declarations(Compiler):
         """True while a non-cancelled element remains at or after the cursor."""
         dead, n = self.dead, len(self.dead)
         idx = self.idx
-        while idx < n and dead[idx]:
-            idx += 1
+        if idx < n and dead[idx]:  # skip cancelled elements
+            idx = dead.find(0, idx)
+            idx = n if idx < 0 else idx
         self.idx = idx
         return idx < n
 
@@ -147,8 +151,9 @@ class Declarations(Compiler):
         if first_too and elements[first].kind is keyword:
             return True
         second = first + 1
-        while second < n and dead[second]:
-            second += 1
+        if second < n and dead[second]:  # skip cancelled elements
+            second = dead.find(0, second)
+            second = n if second < 0 else second
         if second >= n:
             self.idx = n
             return False
@@ -286,8 +291,15 @@ class Declarations(Compiler):
         flags, eeprom, where = self.image.flags, self.image.eeprom, self.image.data_source
         while True:
             j = self.idx
-            while j < n and dead[j]:
-                j += 1
+            if j < n and dead[j]:  # skip cancelled elements
+                j = dead.find(0, j)
+                j = n if j < 0 else j
+            run_end = self.number_lists.get(j)
+            if run_end is not None and self._store_number_list(el, j, run_end, final):
+                el = elements[run_end - 1]
+                self.idx = run_end
+                self.err = (el.start, el.length)
+                continue
             nxt = elements[j] if j < n else None
             if nxt is None or nxt.kind not in (K.COMMA, K.END):
                 return False, el  # an operator or '(' follows: the general path handles it
@@ -308,8 +320,9 @@ class Declarations(Compiler):
                     self.cancel(line, self.idx - 1)
                 return True, nxt
             k = self.idx
-            while k < n and dead[k]:
-                k += 1
+            if k < n and dead[k]:  # skip cancelled elements
+                k = dead.find(0, k)
+                k = n if k < 0 else k
             if k < n and elements[k].kind is K.CONST:
                 el = elements[k]
                 self.idx = k + 1
@@ -318,6 +331,32 @@ class Declarations(Compiler):
             el = self.get()
             if el.kind is not K.CONST:
                 return False, el
+
+    def _store_number_list(self, first: Element, start: int, end: int, final: bool) -> bool:
+        """Store ``first`` and the numbers of the lexer's list ``start``..``end`` that are
+        followed by a comma (all but the last), in one go. False (nothing done) when a byte
+        would be out of range or taken, or part of the list is cancelled: the element by
+        element path then reports exactly where."""
+        count = (end - start) // 2
+        address = self.data_address
+        image = self.image
+        if address + count > tokens.SLOT_BYTES or self.dead.find(1, start, end) >= 0:
+            return False
+        if final:
+            if image.flags.count(0, address, address + count) != count:
+                return False
+            numbers = [first, *self.elements[start + 1 : end - 1 : 2]]
+            image.eeprom[address : address + count] = bytes(int(e.value) & 0xFF for e in numbers)
+            image.flags[address : address + count] = bytes([DEFINED_DATA]) * count
+            image.data_source.update(
+                zip(
+                    range(address, address + count),
+                    [(e.start, e.length) for e in numbers],
+                    strict=True,
+                )
+            )
+        self.data_address = address + count
+        return True
 
     def _store(self, value: int, word: bool, defined: bool, final: bool, item: Element) -> None:
         for part in (value, value >> 8) if word else (value,):

@@ -109,7 +109,7 @@ class Compiler:
         self.err: tuple[int, int] = (0, 0)
         self.symbols: dict[str, tuple[K, int]] = {}
         self.image = Image()
-        self.exp: list[Bits] = [Bits(), Bits(), Bits(), Bits()]
+        self.expr = Bits()  # the expression being compiled (items, MSB first)
         self.stack_idx = 0  # run-time evaluation stack depth while compiling an argument
         self.ops = [0] * 256  # operator stack (see _push)
         self.ops_len = 0
@@ -124,8 +124,9 @@ class Compiler:
         """Next non-cancelled element (user symbols resolved); remembers its position."""
         elements, dead, idx = self.elements, self.dead, self.idx
         n = len(elements)
-        while idx < n and dead[idx]:
-            idx += 1
+        if idx < n and dead[idx]:  # skip cancelled elements
+            idx = dead.find(0, idx)
+            idx = n if idx < 0 else idx
         if idx < n:
             el = elements[idx]
             self.idx = idx + 1
@@ -182,12 +183,15 @@ class Compiler:
                 raise self.fail(exc.code) from None
             raise
 
-    def emit_exp(self, number: int, one_before: bool) -> None:
+    def emit_bits(self, bits: Bits, one_before: bool) -> None:
+        """Write a compiled expression, after a 1 bit ("an argument follows") if asked."""
         if one_before:
             self.emit(1, 1)
-        bits = self.exp[number]
         if bits.length:
             self.emit(bits.length, bits.value)
+
+    def emit_expr(self, one_before: bool) -> None:
+        self.emit_bits(self.expr, one_before)
 
     def emit_code(self, code: int) -> None:
         """A 0 bit and a 6-bit instruction code."""
@@ -195,9 +199,9 @@ class Compiler:
 
     def emit_constant(self, value: int, one_before: bool) -> None:
         self.stack_idx = 0
-        self.exp[0] = Bits()
+        self.expr = Bits()
         self.item_constant(value)
-        self.emit_exp(0, one_before)
+        self.emit_expr(one_before)
 
     def emit_operator(self, op: int) -> None:
         self.emit(1, 1)
@@ -206,7 +210,7 @@ class Compiler:
     # ---- expression items into exp[0] --------------------------------------------------
     def _bits(self, nbits: int, data: int) -> None:
         try:
-            self.exp[0] = self.exp[0].add(nbits, data)
+            self.expr = self.expr.add(nbits, data)
         except Failure as exc:
             raise self.fail(exc.code) from None
 
@@ -222,7 +226,7 @@ class Compiler:
         if depth == tokens.EXPRESSION_STACK_DEPTH and code in _NEEDS_FREE_ENTRY:
             raise self.fail(144)
         self.stack_idx = (depth + _STACK_EFFECT[code]) & 0xFF
-        if self.exp[0].length == 0:
+        if self.expr.length == 0:
             self._bits(6, code)
         else:
             self._bits(7, 0x40 | code)
@@ -291,7 +295,7 @@ class Compiler:
     def read_write(self, write: bool) -> None:
         """A variable alone (read or write item) into exp[0]."""
         self.ops_len = self.ops_floor = 0
-        self.exp[0] = Bits()
+        self.expr = Bits()
         el = self.get()
         if el.kind not in (K.VARIABLE, K.PINNUM):
             raise self.fail(135)
@@ -336,13 +340,13 @@ class Compiler:
     def value(self, pin_const: bool = False) -> None:
         """A value expression into a fresh exp[0]."""
         self.ops_len = self.ops_floor = 0
-        self.exp[0] = Bits()
+        self.expr = Bits()
         self.expression(False, pin_const, 0)
 
     def condition(self, split: int = 0, auto_op: int = OP_EQ) -> None:
         """A condition into a fresh exp[0]; ``split`` > 0: SELECT expression + CASE part."""
         self.ops_len = self.ops_floor = 0
-        self.exp[0] = Bits()
+        self.expr = Bits()
         self.expression(True, False, split, auto_op)
 
     def expression(self, conditional: bool, pin_const: bool, split: int, auto_op: int = 0) -> None:
@@ -482,25 +486,28 @@ class Compiler:
                 raise self.fail(142)
             return el, True, split
 
-    # ---- convenience wrappers used by the instruction compilers ------------------------
-    def value_into(self, number: int, pin_const: bool = False) -> None:
+    # ---- arguments of instructions ------------------------------------------------------
+    # Each argument is compiled at the run-time stack depth it will find (``depth``: how many
+    # values the instruction has pushed before it), which decides error 144. "pushed" ones are
+    # written at once; "held" ones are returned to be written later, in the order the
+    # interpreter pops them.
+    def held_value(self, depth: int, pin_const: bool = False) -> Bits:
+        self.stack_idx = depth
         self.value(pin_const)
-        self.exp[number] = self.exp[0]
+        return self.expr
 
-    def value_emit(self, one_before: bool = True, pin_const: bool = False) -> None:
+    def pushed_value(self, depth: int, one_before: bool = True, pin_const: bool = False) -> None:
+        self.stack_idx = depth
         self.value(pin_const)
-        self.emit_exp(0, one_before)
+        self.emit_expr(one_before)
 
-    def read_into(self, number: int) -> None:
-        self.read_write(False)
-        self.exp[number] = self.exp[0]
+    def held_variable(self, depth: int, write: bool) -> Bits:
+        self.stack_idx = depth
+        self.read_write(write)
+        return self.expr
 
-    def write_into(self, number: int) -> None:
-        self.read_write(True)
-        self.exp[number] = self.exp[0]
-
-    def write_emit(self) -> None:
-        """A write item, then the 0 bit that ends it."""
-        self.read_write(True)
-        self.emit_exp(0, False)
+    def pushed_write(self, depth: int) -> None:
+        """A variable's write item, then the 0 bit that ends it."""
+        self.held_variable(depth, write=True)
+        self.emit_expr(False)
         self.emit(1, 0)

@@ -36,16 +36,18 @@ class Image:
         """Append ``nbits`` low bits of ``value`` to the program stream (MSB first)."""
         if self.pos + nbits > TOTAL_BITS:
             raise Failure(127, -1)
+        eeprom, flags = self.eeprom, self.flags
         pos = self.pos
-        for shift in range(nbits - 1, -1, -1):
-            byte = 2047 - (pos >> 3)
-            kind = self.flags[byte] & 3
-            if kind in (UNDEFINED_DATA, DEFINED_DATA):
+        while nbits:
+            byte = TOTAL_BITS // 8 - 1 - (pos >> 3)
+            if flags[byte] & 3 in (UNDEFINED_DATA, DEFINED_DATA):
                 raise Failure(124, *self.data_source.get(byte, (0, 0)))
-            if (value >> shift) & 1:
-                self.eeprom[byte] |= 0x80 >> (pos & 7)
-            self.flags[byte] |= PROGRAM
-            pos += 1
+            free = 8 - (pos & 7)  # bits left in this byte
+            take = free if free < nbits else nbits
+            nbits -= take
+            eeprom[byte] |= ((value >> nbits) & ((1 << take) - 1)) << (free - take)
+            flags[byte] |= PROGRAM
+            pos += take
         self.pos = pos
 
     def emit_address(self, address: int) -> None:

@@ -197,10 +197,18 @@ _NUMBER_RUNS = {
 _VERSION_RUN = re.compile(rb"[0-9.]+")  # a decimal number that may hold a point (2.5)
 # An operator of two characters (blanks between them are allowed: "< =").
 _OPERATOR_PAIR = re.compile(rb"([*/<>=])[\t ]*([*/<>=])")
-# ", 12, 345, 6" up to (not including) what follows the last number: the bulk of DATA tables.
-# Every number must be followed by another comma, the end of the line or a comment.
-_NUMBER_LIST = re.compile(rb",[\t ]*[0-9]{1,5}(?:[\t ]*,[\t ]*[0-9]{1,5})*(?=[\t ]*[,\x03'])")
-_LIST_ITEM = re.compile(rb",[\t ]*([0-9]+)")
+# ", 12, $3F, 6" up to (not including) what follows the last number: the bulk of DATA tables.
+# Every number must be followed by another comma, the end of the line or a comment. In
+# PBASIC 2.5 a comma continues the statement on the next line (comments between allowed).
+_LIST_NUMBER = rb"(?:[0-9]{1,5}|\$[0-9A-Fa-f]{1,4})"
+_LIST_GAP = {False: rb"[\t ]*", True: rb"(?:[\t \x03]|'[^\x03]*\x03)*"}
+_NUMBER_LIST = {
+    lang25: re.compile(
+        rb"," + gap + _LIST_NUMBER + rb"(?:[\t ]*," + gap + _LIST_NUMBER + rb")*(?=[\t ]*[,\x03'])"
+    )
+    for lang25, gap in _LIST_GAP.items()
+}
+_LIST_ITEM = re.compile(rb",(?:[\t \x03]|'[^\x03]*\x03)*([0-9]+|\$[0-9A-Fa-f]+)")
 
 
 def prepare(text: str) -> bytearray:
@@ -339,26 +347,30 @@ class Lexer:
         return close + 1, quote if stop - first == 1 else stop - 1
 
     def _number_list(self, pos: int) -> int:
-        """Bulk path for ", n, n, n" (DATA tables): the same elements, built in one go.
+        """Bulk path for ", n, $n, n" (DATA tables): the same elements, built in one go.
 
         Returns the position after the last number, or ``pos`` when the text there is not such
         a list (or would overflow the element list: the general path reports that).
         """
-        m = _NUMBER_LIST.match(self.src, pos)
+        m = _NUMBER_LIST[self.lang25].match(self.src, pos)
         if m is None:
             return pos
-        items = [(i.start(), i.start(1), i.group(1)) for i in _LIST_ITEM.finditer(m.group())]
-        elements = self.elements
-        first = len(elements)
-        if first + 2 * len(items) > MAX_ELEMENTS or any(
-            len(d) == 5 and int(d) > 0xFFFF for _, _, d in items
-        ):
-            return pos
         comma, const = K.COMMA, K.CONST
-        for at_comma, at_digits, digits in items:
-            elements.append(Element(comma, 0, pos + at_comma, 1))
-            elements.append(Element(const, int(digits), pos + at_digits, len(digits)))
-        self.number_lists[first] = len(elements)
+        built: list[Element] = []
+        add = built.append
+        for item in _LIST_ITEM.finditer(m.group()):
+            number = item.group(1)
+            value = int(number[1:], 16) if number[0] == 36 else int(number)
+            if value > 0xFFFF:
+                return pos
+            at = pos + item.start(1)
+            add(Element(comma, 0, pos + item.start(), 1))
+            add(Element(const, value, at, len(number)))
+        elements = self.elements
+        if len(elements) + len(built) > MAX_ELEMENTS:
+            return pos
+        self.number_lists[len(elements)] = len(elements) + len(built)
+        elements += built
         self._end_is_redundant = False
         return m.end()
 
@@ -498,9 +510,13 @@ class Directives:
 
 
 def _directive_tokens(src: bytearray, pos: int) -> list[tuple[str, str, int]]:
-    """Tokens of one directive starting at the '$'; each is (kind, text, offset)."""
+    """Tokens of one directive starting at the '$'; each is (kind, text, offset).
+
+    The first two words ($STAMP and the module name) are symbols; after them, unquoted text
+    is a project file name (``{$STAMP BS2sx, a.bsx, sub/b.bsx}``).
+    """
     out: list[tuple[str, str, int]] = []
-    names = 1
+    words = 0  # directive names and symbols read so far
     lex = Lexer(src, True)
     while True:
         start = pos
@@ -528,18 +544,18 @@ def _directive_tokens(src: bytearray, pos: int) -> list[tuple[str, str, int]]:
             pos += 1
         elif c == 36:
             name, pos = lex.symbol(pos)
-            names += 1
+            words += 1
             if name not in ("$STAMP", "$PORT", "$PBASIC"):
                 raise Failure(154, start)
             out.append(("directive", name, start))
         elif 48 <= c <= 57:
             value, pos = lex.number(pos - 1, 10, start, decimals=2)
             out.append(("number", str(value), start))
-        elif _is_symbol_char(c) and names < 3:
+        elif _is_symbol_char(c) and words < 2:
             name, pos = lex.symbol(pos)
-            names += 1
+            words += 1
             out.append(("symbol", name, start))
-        elif _is_path_char(c, False) and names >= 3:
+        elif _is_path_char(c, False) and words >= 2:
             while _is_path_char(src[pos], False):
                 pos += 1
             out.append(("file", src[start:pos].decode("utf-8", "replace"), start))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from bstool.tokenizer import tokens
 from bstool.tokenizer.blocks import Blocks
+from bstool.tokenizer.expressions import Bits
 from bstool.tokenizer.lexer import Element, K
 from bstool.tokenizer.tokens import Instruction
 
@@ -32,18 +33,16 @@ class Serial(Blocks):
         self.emit_code(Instruction.SERIN)
         self.input_list()
 
-    def _pins_and_baud(self, pin_stack: int, flow_stack: int, baud_stack: int) -> bool:
-        self.stack_idx = pin_stack
-        self.value_into(1, pin_const=True)
-        flow = self.check(K.BACKSLASH)
-        if flow:
-            self.stack_idx = flow_stack
-            self.value_into(2, pin_const=True)
+    def _pins_and_baud(
+        self, pin_depth: int, flow_depth: int, baud_depth: int
+    ) -> tuple[Bits, Bits | None, Bits]:
+        """``pin [\\flowpin], baudmode,``: (pin, flow pin or None, baud mode), held."""
+        pin = self.held_value(pin_depth, pin_const=True)
+        flow = self.held_value(flow_depth, pin_const=True) if self.check(K.BACKSLASH) else None
         self.comma()
-        self.stack_idx = baud_stack
-        self.value_into(3)
+        baud = self.held_value(baud_depth)
         self.comma()
-        return flow
+        return pin, flow, baud
 
     def _label_constant(self) -> None:
         self.emit(tokens.LABEL_CONSTANT_PREFIX_BITS, _LABEL_CONSTANT)
@@ -55,20 +54,24 @@ class Serial(Blocks):
         self.comma()
         self._label_constant()
         self.comma()
-        self.emit_exp(0, True)
+        self.emit_expr(True)
 
-    def _finish(self, flow: bool, plain: Instruction, with_flow: Instruction) -> None:
-        self.emit_exp(3, True)
-        self.emit_exp(1, True)
-        if flow:
-            self.emit_exp(2, True)
+    def _finish(
+        self, pins: tuple[Bits, Bits | None, Bits], plain: Instruction, with_flow: Instruction
+    ) -> None:
+        pin, flow, baud = pins
+        self.emit_bits(baud, True)
+        self.emit_bits(pin, True)
+        if flow is not None:
+            self.emit_bits(flow, True)
             self.emit_code(with_flow)
         else:
             self.emit_code(plain)
         self.expect(K.LBRACKET, 121)
 
     def op_serin(self) -> None:
-        flow = self._pins_and_baud(4, 5, 3)
+        """SERIN pin[\\fpin], baud, [[plabel,] [timeout, tlabel,]] [inputs]."""
+        pins = self._pins_and_baud(4, 5, 3)
         nxt = self.peek()
         if nxt.kind is K.LBRACKET:
             self.emit_constant(1, True)
@@ -82,21 +85,21 @@ class Serial(Blocks):
                 self._timeout()
         else:
             self._timeout()
-        self._finish(flow, Instruction.SERIN, Instruction.SERIN_FLOW)
+        self._finish(pins, Instruction.SERIN, Instruction.SERIN_FLOW)
         self.input_list()
         self.expect(K.RBRACKET, 122)
 
     def op_serout(self) -> None:
-        flow = self._pins_and_baud(3, 4, 2)
+        """SEROUT pin[\\fpin], baud, [pace | timeout, tlabel,] [outputs]."""
+        pins = self._pins_and_baud(3, 4, 2)
         if self.peek().kind is not K.LBRACKET:
-            self.stack_idx = 1
-            self.value()
+            pace = self.held_value(1)
             self.comma()
-            if flow:
+            if pins[1] is not None:
                 self._label_constant()
                 self.comma()
-            self.emit_exp(0, True)
-        self._finish(flow, Instruction.SEROUT, Instruction.SEROUT_FLOW)
+            self.emit_bits(pace, True)
+        self._finish(pins, Instruction.SEROUT, Instruction.SEROUT_FLOW)
         self.output_list()
         self.expect(K.RBRACKET, 122)
 
@@ -130,61 +133,31 @@ class Serial(Blocks):
             self._char(tokens.ASCII_QUOTE)
 
     def output_list(self) -> None:
+        """Output items, each followed by 1 (another follows) or 0 (end of the list).
+
+        An item compiler returns (quoted, echoed): ``ASC ?``/``STR ?`` print the value
+        between quotes, and every ``?`` item ends its line with CR.
+        """
+        compilers = {
+            K.ASC_IO: self._out_asc,
+            K.STR_IO: self._out_string,
+            K.REP_IO: self._out_repeat,
+            K.NUM_IO: self._out_number,
+            K.QUESTION: self._out_question,
+        }
         while True:
-            quote = echo = False
             el = self.get()
-            kind = el.kind
-            if kind is K.ASC_IO:
-                self.expect(K.QUESTION, 116)
-                echo = quote = True
-                self._echo_text(True)
-                self._plain_output()
-            elif kind is K.STR_IO:
-                if self.check(K.QUESTION):
-                    echo = quote = True
-                    self._echo_text(True)
-                index = self._byte_variable()
-                if not self.check(K.BACKSLASH):
-                    self.emit_constant(index | tokens.SERIAL_ITEM_STRING, False)
-                    self.emit_constant(tokens.SERIAL_STRING_DEFAULT, True)
-                else:
-                    self.emit_constant(index, False)
-                    self.stack_idx = 1
-                    self.value_emit(True)
-                self.emit(1, 0)
-            elif kind is K.REP_IO:
-                self.stack_idx = 0
-                self.value_emit(False)
-                self.emit_constant(tokens.SERIAL_ITEM_REPEAT, True)
-                self.expect(K.BACKSLASH, 118)
-                self.stack_idx = 2
-                self.value_emit(True)
-                self.emit(1, 0)
-            elif kind is K.NUM_IO:
-                code = int(el.value)
-                if self.check(K.QUESTION):
-                    echo = True
-                    self._echo_text(False)
-                if echo and code & 0xF != 0x6:
-                    code |= tokens.SERIAL_INDICATED
-                self.emit_constant(code, False)
-                self.stack_idx = 1
-                self.value_emit(True)
-                self.emit(1, 0)
-            elif kind is K.QUESTION:
-                echo = True
-                self._echo_text(False)
-                self.emit_constant(tokens.NUMBER_FORMATTERS["DEC"], False)
-                self.stack_idx = 1
-                self.value_emit(True)
-                self.emit(1, 0)
-            else:
+            compile_item = compilers.get(el.kind)
+            if compile_item is None:
                 self.idx -= 1
                 self._plain_output()
-            if quote:
+                quoted = echoed = False
+            else:
+                quoted, echoed = compile_item(el)
+            if quoted:
                 self.emit_constant(tokens.ASCII_QUOTE, True)
                 self.emit(1, 0)
-            if echo:
+            if echoed:
                 self.emit_constant(tokens.ASCII_CR, True)
                 self.emit(1, 0)
             if not self.check(K.COMMA):
@@ -192,9 +165,61 @@ class Serial(Blocks):
             self.emit(1, 1)
         self.emit(1, 0)
 
+    def _out_asc(self, el: Element) -> tuple[bool, bool]:
+        """ASC ? value: "value = "" then the character, then a closing quote."""
+        self.expect(K.QUESTION, 116)
+        self._echo_text(True)
+        self._plain_output()
+        return True, True
+
+    def _out_string(self, el: Element) -> tuple[bool, bool]:
+        """STR [?] bytevar [\\length]: the bytes of an array (a length of 32 by default)."""
+        echoed = self.check(K.QUESTION)
+        if echoed:
+            self._echo_text(True)
+        index = self._byte_variable()
+        if self.check(K.BACKSLASH):
+            self.emit_constant(index, False)
+            self.pushed_value(1, True)
+        else:
+            self.emit_constant(index | tokens.SERIAL_ITEM_STRING, False)
+            self.emit_constant(tokens.SERIAL_STRING_DEFAULT, True)
+        self.emit(1, 0)
+        return echoed, echoed
+
+    def _out_repeat(self, el: Element) -> tuple[bool, bool]:
+        """REP value\\count."""
+        self.pushed_value(0, False)
+        self.emit_constant(tokens.SERIAL_ITEM_REPEAT, True)
+        self.expect(K.BACKSLASH, 118)
+        self.pushed_value(2, True)
+        self.emit(1, 0)
+        return False, False
+
+    def _out_number(self, el: Element) -> tuple[bool, bool]:
+        """DEC/HEX/BIN... [?] value; with '?' HEX and BIN print their $ / % indicator."""
+        formatter = int(el.value)
+        echoed = self.check(K.QUESTION)
+        if echoed:
+            self._echo_text(False)
+            if formatter & 0xF != tokens.NUMBER_FORMATTERS["DEC"] & 0xF:
+                formatter |= tokens.SERIAL_INDICATED
+        self._formatted_value(formatter)
+        return False, echoed
+
+    def _out_question(self, el: Element) -> tuple[bool, bool]:
+        """? value: the same as DEC ? value."""
+        self._echo_text(False)
+        self._formatted_value(tokens.NUMBER_FORMATTERS["DEC"])
+        return False, True
+
+    def _formatted_value(self, formatter: int) -> None:
+        self.emit_constant(formatter, False)
+        self.pushed_value(1, True)
+        self.emit(1, 0)
+
     def _plain_output(self) -> None:
-        self.stack_idx = 1
-        self.value_emit(False)
+        self.pushed_value(1, False)
         self.emit(1, 0)
 
     # ---- input ---------------------------------------------------------------------------
@@ -206,20 +231,17 @@ class Serial(Blocks):
                 self.emit(1, 1)
                 index = self._byte_variable()
                 self.expect(K.BACKSLASH, 118)
-                self.stack_idx = 2
-                self.value_into(1)
+                length = self.held_value(2)
                 if self.check(K.BACKSLASH):
-                    self.stack_idx = 0
-                    self.value_emit(False)
+                    self.pushed_value(0, False)  # the end character
                     self.emit(1, 1)
                     index |= tokens.SERIAL_ITEM_STRING
                 self.emit_constant(index, False)
-                self.emit_exp(1, True)
+                self.emit_bits(length, True)
                 self.emit(1, 0)
             elif kind is K.SKIP_IO:
                 self.emit_constant(tokens.SERIAL_ITEM_REPEAT, True)
-                self.stack_idx = 1
-                self.value_emit(True)
+                self.pushed_value(1, True)
                 self.emit(1, 0)
             elif kind is K.WAITSTR_IO:
                 index = self._byte_variable()
@@ -229,8 +251,7 @@ class Serial(Blocks):
                 else:
                     flags = tokens.SERIAL_ITEM_WAITSTR | tokens.SERIAL_ITEM_STRING
                     self.emit_constant(index | flags, True)
-                    self.stack_idx = 1
-                    self.value_emit(True)
+                    self.pushed_value(1, True)
                 self.emit(1, 0)
             elif kind is K.WAIT_IO:
                 self._wait()
@@ -238,13 +259,11 @@ class Serial(Blocks):
                 self.emit_constant(int(el.value), True)
                 self.emit_constant(0, True)
                 self.emit(1, 0)
-                self.stack_idx = 1
-                self.write_emit()
+                self.pushed_write(1)
             else:
                 self.idx -= 1
                 self.emit(1, 0)
-                self.stack_idx = 1
-                self.write_emit()
+                self.pushed_write(1)
             if not self.check(K.COMMA):
                 break
             self.emit(1, 1)
@@ -269,8 +288,7 @@ class Serial(Blocks):
         resume = self.idx
         for start in reversed(starts):
             self.idx = start
-            self.stack_idx = 0
-            self.value_emit(False)
+            self.pushed_value(0, False)
             self.emit(1, 1)
         self.idx = resume
         self.emit_constant(tokens.SERIAL_ITEM_WAIT, False)

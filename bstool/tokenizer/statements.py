@@ -15,6 +15,7 @@ from enum import Enum
 from bstool.tokenizer import tokens
 from bstool.tokenizer.declarations import Declarations
 from bstool.tokenizer.diagnostics import Failure
+from bstool.tokenizer.expressions import Bits
 from bstool.tokenizer.lexer import OP_EQ, Element, K
 from bstool.tokenizer.tokens import Binary, Instruction, Unary
 
@@ -207,8 +208,7 @@ class Statements(Declarations):
 
     # ---- simple instructions ------------------------------------------------------------
     def _pin_op(self, code: Instruction) -> None:
-        self.stack_idx = 0
-        self.value_emit(True, pin_const=True)
+        self.pushed_value(0, True, pin_const=True)
         self.emit_code(code)
 
     def op_high(self) -> None:
@@ -230,8 +230,7 @@ class Statements(Declarations):
         self._pin_op(Instruction.REVERSE)
 
     def _value_op(self, code: Instruction, resume: bool = False) -> None:
-        self.stack_idx = 0
-        self.value_emit(True)
+        self.pushed_value(0, True)
         self.emit_code(code)
         if resume:
             self._emit_address(self.image.pos + ADDR)
@@ -269,34 +268,30 @@ class Statements(Declarations):
         self.patch(self.gosubs * ADDR, self.image.pos)
 
     def op_let(self) -> None:
-        self.stack_idx = 1
-        self.write_into(1)
+        """variable = value: the value, then the variable's write item."""
+        target = self.held_variable(1, write=True)
         el = self.get()
         if el.kind is not K.COND1 or el.value != OP_EQ:
             raise self.fail(150)
-        self.stack_idx = 0
-        self.value_emit(True)
-        self.emit_exp(1, True)
+        self.pushed_value(0)
+        self.emit_bits(target, True)
         self.emit_code(Instruction.DONE)
 
     def op_random(self) -> None:
         here = self.idx
         self.stack_idx = 0
         self.read_write(False)
-        self.emit_exp(0, True)
+        self.emit_expr(True)
         self.emit_code(Instruction.RANDOM)
         self.idx = here
-        self.stack_idx = 1
-        self.write_emit()
+        self.pushed_write(1)
 
-    def _pin_then(self, stack: int) -> None:
-        """pin (kept in exp 1), ',', value pushed, pin pushed."""
-        self.stack_idx = stack
-        self.value_into(1, pin_const=True)
+    def _pin_then(self, pin_depth: int) -> None:
+        """``pin, value``: the value is pushed first, then the pin."""
+        pin = self.held_value(pin_depth, pin_const=True)
         self.comma()
-        self.stack_idx = 0
-        self.value_emit(True)
-        self.emit_exp(1, True)
+        self.pushed_value(0)
+        self.emit_bits(pin, True)
 
     def op_pulsout(self) -> None:
         self._pin_then(1)
@@ -306,7 +301,7 @@ class Statements(Declarations):
         self._pin_then(1)
         self.comma()
         self.emit_code(code)
-        self.write_emit()
+        self.pushed_write(self.stack_idx)  # at the depth the arguments left
 
     def op_pulsin(self) -> None:
         self._measure(Instruction.PULSIN)
@@ -318,80 +313,65 @@ class Statements(Declarations):
         self._measure(Instruction.RCTIME)
 
     def op_pwm(self) -> None:
-        self.stack_idx = 2
-        self.value_into(1, pin_const=True)
+        """PWM pin, duty, cycles: duty, cycles, pin."""
+        pin = self.held_value(2, pin_const=True)
         self.comma()
-        self.stack_idx = 0
-        self.value_emit(True)
+        self.pushed_value(0)
         self.comma()
-        self.stack_idx = 1
-        self.value_emit(True)
-        self.emit_exp(1, True)
+        self.pushed_value(1)
+        self.emit_bits(pin, True)
         self.emit_code(Instruction.PWM)
 
     def op_freqout(self) -> None:
-        self.stack_idx = 0
-        self.value_emit(True, pin_const=True)
+        self.pushed_value(0, True, pin_const=True)
         self.comma()
-        self.stack_idx = 1
-        self.value_emit(True)
+        self.pushed_value(1, True)
         self.comma()
-        self.stack_idx = 2
-        self.value_emit(True)
+        self.pushed_value(2, True)
         if self.check(K.COMMA):
-            self.stack_idx = 3
-            self.value_emit(True)
+            self.pushed_value(3, True)
             self.emit_code(Instruction.FREQOUT2)
         else:
             self.emit_code(Instruction.FREQOUT1)
 
     def op_dtmfout(self) -> None:
-        self.stack_idx = 0
-        self.value_emit(True, pin_const=True)
+        self.pushed_value(0, True, pin_const=True)
         self.comma()
         if self.peek().kind is K.LBRACKET:
             self.emit_constant(tokens.DTMF_DEFAULT_OFF_MS, True)
             self.emit_constant(tokens.DTMF_DEFAULT_ON_MS, True)
         else:
-            self.stack_idx = 2
-            self.value_into(1)
+            on_time = self.held_value(2)
             self.comma()
-            self.stack_idx = 1
-            self.value_emit(True)
+            self.pushed_value(1)  # off time
             self.comma()
-            self.emit_exp(1, True)
+            self.emit_bits(on_time, True)
         self.emit_code(Instruction.DTMFOUT)
         self.expect(K.LBRACKET, 121)
         while True:
-            self.stack_idx = 3
-            self.value_emit(False)
+            self.pushed_value(3, False)
             self.emit(1, 0)
             if self.more_or_bracket():
                 return
 
     def op_xout(self) -> None:
-        self.stack_idx = 0
-        self.value_emit(True, pin_const=True)
+        self.pushed_value(0, True, pin_const=True)
         self.comma()
-        self.stack_idx = 1
-        self.value_emit(True, pin_const=True)
+        self.pushed_value(1, True, pin_const=True)
         self.comma()
         self.emit_code(Instruction.XOUT)
         self.expect(K.LBRACKET, 121)
         while True:
-            self.stack_idx = 2
-            self.value_emit(False)
+            self.pushed_value(2, False)
             self.expect(K.BACKSLASH, 118)
             self.emit_constant(tokens.X10_KEY_BASE, True)
             self.emit_operator(Binary.MOD)
-            self.stack_idx = 3
-            self.value_emit(True)
+            self.pushed_value(3, True)
             self.emit_constant(tokens.X10_KEY_BASE, True)
             self.emit_operator(Binary.MUL)
             self.emit_operator(Binary.ADD)
             if self.check(K.BACKSLASH):
-                self.stack_idx = 3
-                self.value_emit(True)
+                self.pushed_value(3, True)
             else:
                 self.emit_constant(tokens.XOUT_DEFAULT_CYCLES, True)
             self.emit_operator(Unary.NOT)
@@ -400,61 +380,53 @@ class Statements(Declarations):
                 return
 
     def op_button(self) -> None:
-        self.stack_idx = 5
-        self.value_into(1, pin_const=True)
+        """BUTTON pin, downstate, delay, rate, workspace, targetstate, label."""
+        pin = self.held_value(5, pin_const=True)
         self.comma()
-        for stack in (0, 1, 2):
-            self.stack_idx = stack
-            self.value_emit(True)
+        for depth in (0, 1, 2):  # downstate, delay, rate
+            self.pushed_value(depth)
             self.comma()
         here = self.idx
-        self.stack_idx = 4
-        self.read_into(2)
+        workspace_read = self.held_variable(4, write=False)
         self.idx = here
-        self.stack_idx = 1
-        self.write_into(3)
+        workspace_write = self.held_variable(1, write=True)
         self.comma()
-        self.stack_idx = 3
-        self.value_emit(True)
+        self.pushed_value(3)  # targetstate
         self.comma()
-        self.emit_exp(2, True)
-        self.emit_exp(1, True)
+        self.emit_bits(workspace_read, True)
+        self.emit_bits(pin, True)
         self.emit_code(Instruction.BUTTON)
-        self.emit_exp(3, False)
+        self.emit_bits(workspace_write, False)
         self.emit(1, 0)
         self.address()
 
     def _shift_header(self, code: Instruction) -> None:
-        self.stack_idx = 1
-        self.value_into(1, pin_const=True)
+        """dpin, cpin, mode, [: mode, dpin, cpin."""
+        data_pin = self.held_value(1, pin_const=True)
         self.comma()
-        self.stack_idx = 2
-        self.value_into(2, pin_const=True)
+        clock_pin = self.held_value(2, pin_const=True)
         self.comma()
-        self.stack_idx = 0
-        self.value_emit(True)
+        self.pushed_value(0)
         self.comma()
-        self.emit_exp(1, True)
-        self.emit_exp(2, True)
+        self.emit_bits(data_pin, True)
+        self.emit_bits(clock_pin, True)
         self.emit_code(code)
         self.expect(K.LBRACKET, 121)
 
     def _shift_bits(self) -> None:
         if self.check(K.BACKSLASH):
-            self.stack_idx = 3
-            self.value_emit(False)
+            self.pushed_value(3, False)
         else:
             self.emit_constant(tokens.SHIFT_DEFAULT_BITS, False)
 
     def op_shiftin(self) -> None:
         self._shift_header(Instruction.SHIFTIN)
         while True:
-            self.stack_idx = 5
-            self.write_into(1)
+            target = self.held_variable(5, write=True)
             self._shift_bits()
             self.emit_constant(0, True)
             self.emit(1, 0)
-            self.emit_exp(1, False)
+            self.emit_bits(target, False)
             self.emit(1, 0)
             if self.more_or_bracket():
                 return
@@ -462,18 +434,16 @@ class Statements(Declarations):
     def op_shiftout(self) -> None:
         self._shift_header(Instruction.SHIFTOUT)
         while True:
-            self.stack_idx = 4
-            self.value_into(1)
+            value = self.held_value(4)
             self._shift_bits()
-            self.emit_exp(1, True)
+            self.emit_bits(value, True)
             self.emit(1, 0)
             if self.more_or_bracket():
                 return
 
     # ---- tables and branches ------------------------------------------------------------
     def op_branch(self) -> None:
-        self.stack_idx = 0
-        self.value_emit(True)
+        self.pushed_value(0, True)
         self.emit_code(Instruction.BRANCH)
         self.comma()
         self.expect(K.LBRACKET, 121)
@@ -482,28 +452,24 @@ class Statements(Declarations):
             if self.more_or_bracket():
                 return
 
-    def _value_list(self, stack: int) -> None:
+    def _value_list(self, depth: int) -> None:
         self.expect(K.LBRACKET, 121)
         while True:
-            self.stack_idx = stack
-            self.value_emit(False)
+            self.pushed_value(depth, False)
             self.emit(1, 0)
             if self.more_or_bracket():
                 break
         self.comma()
-        self.stack_idx = 1
-        self.write_emit()
+        self.pushed_write(1)
 
     def op_lookup(self) -> None:
-        self.stack_idx = 0
-        self.value_emit(True)
+        self.pushed_value(0, True)
         self.emit_code(Instruction.LOOKUP)
         self.comma()
         self._value_list(2)
 
     def op_lookdown(self) -> None:
-        self.stack_idx = 0
-        self.value_emit(True)
+        self.pushed_value(0, True)
         self.emit_code(Instruction.LOOKDOWN)
         self.comma()
         el = self.get()
@@ -529,7 +495,7 @@ class Statements(Declarations):
             self.gosubs += 1
             self.emit(tokens.GOSUB_ID_BITS, self.gosubs)
             self._emit_address(self.image.pos + ADDR)
-        self.emit_exp(0, True)
+        self.emit_expr(True)
         self.emit_code(Instruction.BRANCH)
         while True:
             self.address()
@@ -547,161 +513,155 @@ class Statements(Declarations):
             self.patch(self.gosubs * ADDR, self.image.pos)
 
     # ---- EEPROM and scratchpad ----------------------------------------------------------
-    def _location_plus(self, offset: int) -> None:
-        """exp 0 = exp 1 (the location) + offset."""
-        self.exp[0] = self.exp[1]
+    # READ/GET/WRITE/PUT take a list of items in PBASIC 2.5; each item is a transfer of its
+    # own at location + n. A WORD item is two byte transfers: low byte, then high byte at + 1.
+
+    def _location_plus(self, location: Bits, offset: int) -> Bits:
+        """The expression ``location + offset``."""
+        self.expr = location
         self.item_constant(offset)
         self.item(Binary.ADD)
+        return self.expr
 
-    def _word_switch(self, code: int) -> int:
-        """PBASIC 2.5 'WORD' before an item; returns the element index after it (0 = none)."""
-        if self.lang25 and self.peek().kind is K.VARTYPE:
-            el = self.get()
-            if el.value != 3:
-                raise self.fail(code)
-            return self.idx
-        return 0
+    def _high_part(self, value: Bits) -> Bits:
+        """The expression ``value >> 8`` (the high byte of a WORD value)."""
+        self.expr = value
+        self.item_constant(8)
+        self.item(Binary.SHR)
+        return self.expr
 
-    def _high_byte_write(self, var_at: int) -> None:
-        """Check that the WORD target is a plain word variable; keep its write item."""
+    def _word_prefix(self, code: int) -> int | None:
+        """PBASIC 2.5 ``WORD`` before an item: the element index after it (None: no WORD)."""
+        if not (self.lang25 and self.peek().kind is K.VARTYPE):
+            return None
+        if self.get().value != tokens.VarSize.WORD:
+            raise self.fail(code)
+        return self.idx
+
+    def _check_word_variable(self, var_at: int) -> None:
+        """The variable after WORD must be a whole Word variable (no modifier): error 173."""
         here = self.idx
         self.idx = var_at
         el = self.get()
-        if (int(el.value) & 0x0F00) != 0x0300:
+        if (int(el.value) >> 8) & 0xF != tokens.VarSize.WORD:
             raise self.fail(173)
-        start = el.start
         if self.get().kind is K.PERIOD:
             last = self.get()
-            raise Failure(173, start, last.start - start + last.length)
+            raise Failure(173, el.start, last.start + last.length - el.start)
         self.idx = here
-        self.exp[2] = self.exp[0]
 
-    def _patched_high_byte(self, location_offset: int, code: Instruction, resume: bool) -> None:
-        """Second transfer of a WORD item: location + offset, variable.HIGHBYTE."""
-        var_exp = self.exp[2]
-        self._location_plus(location_offset)
-        self.emit_exp(0, True)
-        self.emit_code(code)
-        if resume:
-            self._emit_address(self.image.pos + ADDR)
-        # The write item of a word variable is its last 10 bits (6-bit item, 4-bit index).
-        item = var_exp.value & 0x3FF
-        rest_len = var_exp.length - 10
-        rest = var_exp.value >> 10
-        bits = rest_len
-        value = rest
-        if rest_len > 0:
-            value, bits = (value << 7) | 0x42, bits + 7
-            self.exp[0] = type(var_exp)(value, bits)
+    def _high_byte_target(self, word_write: Bits) -> Bits:
+        """The write item of ``var.HIGHBYTE`` made from the write item of word ``var``.
+
+        The word's item is the last 10 bits: a 6-bit item code and the word's number. Its
+        high byte is byte number 2 * word + 1 with the item's size changed to Byte; an index
+        counted in words is doubled (``var(i)`` -> ``var.HIGHBYTE(i * 2)``). What comes
+        before the item (index items, and the 1 that announces the item) is kept.
+        """
+        code, word = word_write.value >> 4 & 0x3F, word_write.value & 0xF
+        self.expr = Bits(word_write.value >> 10, word_write.length - 10)
+        if self.expr.length:
+            # the constant 2 (item $21, flag 0: exactly 2^1) takes the announced place
+            self._bits(6, tokens.CONSTANT_ITEM | 1)
+            self._bits(1, 0)
             self.item(Binary.MUL)
-            value, bits = (self.exp[0].value << 1) | 1, self.exp[0].length + 1
-        byte_item = ((item & 0x3E0) << 1) + ((item & 0xF) * 2 + 1)
-        value, bits = (value << 11) | byte_item, bits + 11
-        if bits >= tokens.EXPRESSION_BUFFER_BITS:
-            raise self.fail(144)
-        self.exp[0] = type(var_exp)(value, bits)
-        self.emit_exp(0, False)
-        self.emit(1, 0)
+            self._bits(1, 1)
+        self._bits(6, (code & ~3) | tokens.VarSize.BYTE)
+        self._bits(5, 2 * word + 1)
+        return self.expr
 
-    def _read_like(self, code: Instruction, resume: bool) -> None:
-        offset = 0
-        self.stack_idx = 0
-        self.value_emit(True)
-        self.exp[1] = self.exp[0]
+    def _list_end(self) -> bool:
+        """After an item: True when another one follows (a ',' in PBASIC 2.5)."""
+        nxt = self.peek() if self.lang25 else Element(K.END, 0, 0, 0)
+        if nxt.kind is K.COMMA:
+            return False
+        if nxt.kind is not K.END:
+            self.get()
+            raise self.fail(130)
+        return True
+
+    def _read_list(self, code: Instruction, resume: bool) -> None:
+        """READ/GET location, item {, item}: the location is pushed once, later items add n."""
+        self.pushed_value(0, True)
+        location = self.expr
         self.emit_code(code)
         self.comma()
+        offset = 0
         while True:
             if resume:
                 self._emit_address(self.image.pos + ADDR)
-            word_at = self._word_switch(172)
-            self.stack_idx = 1
-            self.write_emit()
-            if word_at:
-                self._high_byte_write(word_at)
+            word_at = self._word_prefix(172)
+            self.pushed_write(1)
+            if word_at is not None:
+                self._check_word_variable(word_at)
+                word_write = self.expr
                 offset += 1
-                self._patched_high_byte(offset, code, resume)
+                self._location_plus(location, offset)
+                self.emit_expr(True)
+                self.emit_code(code)
+                if resume:
+                    self._emit_address(self.image.pos + ADDR)
+                self._high_byte_target(word_write)
+                self.emit_expr(False)
+                self.emit(1, 0)
             offset += 1
-            nxt = self.peek() if self.lang25 else Element(K.END, 0, 0, 0)
-            if nxt.kind is not K.COMMA:
-                break
-            self._location_plus(offset)
-            self.emit_exp(0, True)
+            if self._list_end():
+                return
+            self._location_plus(location, offset)
+            self.emit_expr(True)
             self.emit_code(code)
             self.comma()
-        if nxt.kind is not K.END:
-            self.get()
-            raise self.fail(130)
 
     def op_read(self) -> None:
-        self._read_like(Instruction.READ, resume=True)
+        self._read_list(Instruction.READ, resume=True)
 
     def op_get(self) -> None:
-        self._read_like(Instruction.GET, resume=False)
+        self._read_list(Instruction.GET, resume=False)
 
     def op_write(self) -> None:
+        """WRITE location, item {, item}: value pushed, then location (+ n), WRITE."""
+        location = self.held_value(1)
         offset = 0
-        self.stack_idx = 1
-        self.value_into(1)
         while True:
             self.comma()
-            word_at = self._word_switch(227)
-            self.stack_idx = 0
-            self.value_emit(True)
-            self.exp[2] = self.exp[0]
-            self.exp[0] = self.exp[1]
-            if offset > 0:
-                self.item_constant(offset)
-                self.item(Binary.ADD)
-            self.emit_exp(0, True)
+            word = self._word_prefix(227) is not None
+            self.pushed_value(0, True)
+            value = self.expr
+            self.expr = self._location_plus(location, offset) if offset else location
+            self.emit_expr(True)
             self.emit_code(Instruction.WRITE)
             self._emit_address(self.image.pos + ADDR)
-            if word_at:
-                self.exp[0] = self.exp[2]
-                self.item_constant(8)
-                self.item(Binary.SHR)
-                self.emit_exp(0, True)
+            if word:
+                self._high_part(value)
+                self.emit_expr(True)
                 offset += 1
-                self._location_plus(offset)
-                self.emit_exp(0, True)
+                self._location_plus(location, offset)
+                self.emit_expr(True)
                 self.emit_code(Instruction.WRITE)
                 self._emit_address(self.image.pos + ADDR)
             offset += 1
-            nxt = self.peek() if self.lang25 else Element(K.END, 0, 0, 0)
-            if nxt.kind is not K.COMMA:
-                break
-        if nxt.kind is not K.END:
-            self.get()
-            raise self.fail(130)
+            if self._list_end():
+                return
 
     def op_put(self) -> None:
+        """PUT location, item {, item}: location (+ n) pushed, then value, PUT."""
+        location = self.held_value(0)
         offset = 0
-        self.stack_idx = 0
-        self.value_into(1)
         while True:
             self.comma()
-            word_at = self._word_switch(227)
-            self.exp[0] = self.exp[1]
-            if offset > 0:
-                self.item_constant(offset)
-                self.item(Binary.ADD)
-            self.emit_exp(0, True)
-            self.stack_idx = 1
-            self.value_emit(True)
-            self.exp[2] = self.exp[0]
+            word = self._word_prefix(227) is not None
+            self.expr = self._location_plus(location, offset) if offset else location
+            self.emit_expr(True)
+            self.pushed_value(1, True)
+            value = self.expr
             self.emit_code(Instruction.PUT)
-            if word_at:
+            if word:
                 offset += 1
-                self._location_plus(offset)
-                self.emit_exp(0, True)
-                self.exp[0] = self.exp[2]
-                self.item_constant(8)
-                self.item(Binary.SHR)
-                self.emit_exp(0, True)
+                self._location_plus(location, offset)
+                self.emit_expr(True)
+                self._high_part(value)
+                self.emit_expr(True)
                 self.emit_code(Instruction.PUT)
             offset += 1
-            nxt = self.peek() if self.lang25 else Element(K.END, 0, 0, 0)
-            if nxt.kind is not K.COMMA:
-                break
-        if nxt.kind is not K.END:
-            self.get()
-            raise self.fail(130)
+            if self._list_end():
+                return

@@ -111,6 +111,7 @@ def topology() -> dict[str, object]:
                     "colour": lk.colour,
                     "master_sends": lk.master_payload,
                     "slave_sends": lk.slave_payload,
+                    "bypass": lk.bypass,
                 }
                 for lk in links(model, 5, 6)
             ]

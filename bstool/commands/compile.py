@@ -1,0 +1,76 @@
+"""``bstool compile``: a controller file → PBASIC per module, EEPROM images, manifest, wiring."""
+
+from __future__ import annotations
+
+import click
+
+
+@click.command("compile")
+@click.argument("controller", type=click.Path(dir_okay=False))
+@click.option(
+    "-o",
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    default="build",
+    show_default=True,
+    help="Output folder (replaced as a whole; never left half-written).",
+)
+@click.option(
+    "--calibration",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Servo calibration JSON (bstool.servos/1) overriding the defaults per module.",
+)
+@click.option(
+    "--period",
+    type=float,
+    default=None,
+    metavar="S",
+    help="Seconds per transition (default: the simulator's transition time).",
+)
+@click.option(
+    "--module",
+    "modules",
+    multiple=True,
+    metavar="L.M",
+    help="Compile only this module (leg.module, 0 = lead); repeatable.",
+)
+@click.option("--quiet", is_flag=True, help="Print nothing on success.")
+def command(
+    controller: str,
+    out_dir: str,
+    calibration: str | None,
+    period: float | None,
+    modules: tuple[str, ...],
+    quiet: bool,
+) -> None:
+    """Compile CONTROLLER (best.json) into one PBASIC program per module (docs/compile.md):
+    sources, tokenized slot images, manifest.json and WIRING.md in the output folder."""
+    import sys
+
+    from bstool.compile import compile_controller
+
+    result = compile_controller(
+        controller,
+        out_dir,
+        calibration=calibration,
+        period=period,
+        modules=modules,
+        progress=not quiet and sys.stderr.isatty(),
+    )
+    if quiet:
+        return
+    slots = sum(len(m.slots) for m in result.modules)
+    images = "tokenized" if result.tokenized else "sources only (tokenizer not available)"
+    click.echo(
+        f"compiled {len(result.modules)} modules ({slots} slots, {images}) for controller "
+        f"{result.controller_hash[:8]} into {result.out_dir}"
+    )
+    gap = max(m.timing["longest_servo_gap_s"] for m in result.modules)
+    worst = max(m.timing["worst_case_transition_s"] for m in result.modules)
+    first = max(m.timing["first_transition_s"] for m in result.modules)
+    click.echo(
+        f"longest servo gap {gap * 1000:.1f} ms; worst-case transition {worst:.3f} s; "
+        f"first transition (roll call) {first:.1f} s"
+    )

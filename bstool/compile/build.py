@@ -1,0 +1,302 @@
+"""Orchestrate a build: load, plan, render, tokenize, describe, and write build/ atomically."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from bstool import fileio
+from bstool.compile import describe
+from bstool.compile.calibration import DEFAULT, Calibration, load_calibration
+from bstool.compile.plan import ModulePlan, build_plans, estimates, exchange_ms
+from bstool.compile.render import render_module
+from bstool.controllers import Controller, controller_hash, load_controller
+from bstool.errors import BstoolError, BuildError, InputError, SourceError
+from bstool.moduleid import ModuleId, parse_module
+
+SLOT_BYTES = 2048
+RAM_BYTES = 26
+
+
+@dataclass
+class SlotResult:
+    slot: int
+    file: str
+    source_sha256: str
+    program_bytes: int | None = None
+    data_bytes: int | None = None
+    eeprom: bytes | None = None
+    packets: bytes | None = None
+
+
+@dataclass
+class ModuleResult:
+    plan: ModulePlan
+    sources: dict[str, str]
+    slots: list[SlotResult]
+    ram_bytes: int
+    timing: dict[str, float]
+    ram_map: dict[str, list[object]] | None = None  # STATE/TN location (twin's state probe)
+
+
+@dataclass
+class BuildResult:
+    out_dir: Path
+    controller_hash: str
+    modules: list[ModuleResult]
+    tokenized: bool
+    manifest: dict[str, Any]
+
+
+def default_period(legs: int, modules: int) -> float:
+    """The simulator's transition time for this robot (``RobotSpec.transition_time``)."""
+    from bstool.robot import RobotSpec
+
+    return float(RobotSpec(legs=legs, modules=modules).transition_time)
+
+
+def _tokenizer() -> Callable[[str | os.PathLike[str]], Any] | None:
+    """The project's tokenizer, if it has landed (imported lazily)."""
+    try:
+        from bstool import tokenizer
+    except ImportError:  # pragma: no cover
+        return None
+    fn = getattr(tokenizer, "tokenize_file", None)
+    return fn if callable(fn) else None
+
+
+def ram_estimate(plan: ModulePlan) -> int:
+    """Bytes of RAM the declared variables take (26 available): words, bytes, nibs, bits."""
+    nibs = 2 + len(plan.known)  # state, tn, nb()/up()
+    bits = 1  # booted
+    return 2 + 1 + 1 + plan.rx_size + (nibs + 1) // 2 + (bits + 7) // 8
+
+
+def compile_controller(
+    controller: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str] = "build",
+    *,
+    calibration: str | os.PathLike[str] | None = None,
+    period: float | None = None,
+    modules: Sequence[str] = (),
+    tokenize: bool = True,
+    progress: bool = False,
+) -> BuildResult:
+    """Compile ``controller`` into ``out_dir`` (replaced as a whole, never half-written)."""
+    ctrl = load_controller(controller)
+    return compile_loaded(
+        ctrl,
+        out_dir,
+        source_name=Path(controller).name,
+        calibration=calibration,
+        period=period,
+        modules=modules,
+        tokenize=tokenize,
+        progress=progress,
+    )
+
+
+def compile_loaded(
+    ctrl: Controller,
+    out_dir: str | os.PathLike[str],
+    *,
+    source_name: str = "controller",
+    calibration: str | os.PathLike[str] | None = None,
+    period: float | None = None,
+    modules: Sequence[str] = (),
+    tokenize: bool = True,
+    progress: bool = False,
+) -> BuildResult:
+    out = Path(out_dir)
+    _check_output(out)
+    full_hash = controller_hash(ctrl)
+    calib: Calibration = (
+        DEFAULT if calibration is None else load_calibration(calibration, ctrl.legs, ctrl.modules)
+    )
+    if period is None:
+        period = default_period(ctrl.legs, ctrl.modules)
+    if not period > 0:
+        raise InputError(f"--period must be > 0 seconds, got {period}")
+    only: list[ModuleId] = []
+    for text in modules:
+        try:
+            only.append(parse_module(text, ctrl.legs, ctrl.modules))
+        except InputError as exc:
+            raise InputError(
+                exc.message,
+                hint=f"this controller's robot has modules 0.0 .. "
+                f"{ctrl.legs - 1}.{ctrl.modules - 1}",
+            ) from None
+    plans = build_plans(ctrl, calib, period, full_hash[:8], only or None)
+    exchange = exchange_ms(build_plans(ctrl, calib, period, full_hash[:8]))
+    if exchange / 1000 > period * 0.8:
+        raise BuildError(
+            f"a period of {period:g} s is too short for {ctrl.model}: exchanging states "
+            f"between neighbours takes about {exchange / 1000:.3f} s per transition",
+            hint=f"use --period {exchange / 800:.2f} or more",
+        )
+    tokenizer = _tokenizer() if tokenize else None
+    results = [
+        _module(plan, estimates(plan, exchange), tokenizer)
+        for plan in tqdm(plans, desc="compile", unit="module", disable=not progress, leave=False)
+    ]
+    manifest = describe.manifest(
+        ctrl, source_name, full_hash, period, results, tokenizer is not None
+    )
+    wiring = describe.wiring(ctrl, full_hash, results, manifest)
+    _write_atomically(out, results, manifest, wiring, ctrl.to_json())
+    return BuildResult(out, full_hash, results, tokenizer is not None, manifest)
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _module(
+    plan: ModulePlan,
+    timing: dict[str, float],
+    tokenizer: Callable[[str | os.PathLike[str]], Any] | None,
+) -> ModuleResult:
+    sources = render_module(plan)
+    slots = [
+        SlotResult(slot, name, _sha(sources[name].encode()))
+        for slot, name in enumerate(plan.slot_files)
+    ]
+    ram = ram_estimate(plan)
+    ram_map: dict[str, list[object]] | None = None
+    if tokenizer is not None:
+        project = _tokenize(plan, sources, tokenizer)
+        for sr in slots:
+            image = project.slots[sr.slot]
+            sr.program_bytes = int(image.program_bytes)
+            sr.data_bytes = int(image.data_bytes)
+            sr.eeprom = bytes(image.eeprom)
+            sr.packets = b"".join(bytes(r) for r in image.records)
+            if sr.program_bytes + sr.data_bytes > SLOT_BYTES:  # pragma: no cover - tokenizer checks
+                raise _too_big(plan, sr.slot, sr.program_bytes + sr.data_bytes - SLOT_BYTES)
+        ram = max(int(getattr(project.slots[0], "variables_used", ram)), ram)
+        variables = getattr(project.slots[0], "variables", {})
+        ram_map = {
+            name.lower(): list(variables[name.upper()])
+            for name in ("state", "tn")
+            if name.upper() in variables
+        }
+    if ram > RAM_BYTES:
+        raise BuildError(
+            f"{plan.label}: the program needs {ram} bytes of RAM, the BS2sx has {RAM_BYTES}",
+            hint="use a robot with fewer modules per leg (NN frames grow with the leg)",
+        )
+    return ModuleResult(plan, sources, slots, ram, timing, ram_map)
+
+
+def _too_big(plan: ModulePlan, slot: int, over: int) -> BuildError:
+    what = (
+        "the rule slice per slot (tables.RULE_SLOTS) or the neighbour count"
+        if slot
+        else "the number of links (model) or the NN table"
+    )
+    return BuildError(
+        f"{plan.label}: slot {slot} ({plan.slot_files[slot]}) does not fit: {over} bytes over "
+        f"the {SLOT_BYTES}-byte slot",
+        hint=f"reduce {what}; see docs/compile.md (slot layout)",
+    )
+
+
+def _tokenize(
+    plan: ModulePlan, sources: dict[str, str], tokenizer: Callable[[str | os.PathLike[str]], Any]
+) -> Any:
+    with tempfile.TemporaryDirectory(prefix="bstool-tok-") as tmp:
+        for name, text in sources.items():
+            (Path(tmp) / name).write_text(text, encoding="utf-8")
+        try:
+            return tokenizer(Path(tmp) / "main.bsx")
+        except SourceError as exc:
+            slot = plan.slot_files.index(Path(exc.file).name) if exc.file else 0
+            if exc.code == 124:  # data overlaps program: measure the program alone
+                over = _overflow(plan, slot, sources, tokenizer)
+                raise _too_big(plan, slot, over) from None
+            raise BuildError(
+                f"{plan.label}: generated PBASIC does not tokenize: {exc}",
+                hint="this is a bstool bug in templates/pbasic; please report it with the "
+                "controller file",
+            ) from None
+
+
+def _overflow(
+    plan: ModulePlan,
+    slot: int,
+    sources: dict[str, str],
+    tokenizer: Callable[[str | os.PathLike[str]], Any],
+) -> int:
+    probe = render_module(plan, probe=True)
+    with tempfile.TemporaryDirectory(prefix="bstool-probe-") as tmp:
+        for name, text in probe.items():
+            (Path(tmp) / name).write_text(text, encoding="utf-8")
+        try:
+            image = tokenizer(Path(tmp) / "main.bsx").slots[slot]
+        except BstoolError:  # pragma: no cover - cannot measure
+            return 0
+    data = len(plan.rule_slots[slot - 1]) if slot else int(image.data_bytes)
+    return max(0, int(image.program_bytes) + data - SLOT_BYTES)
+
+
+def _check_output(out: Path) -> None:
+    """Refuse to replace anything but a previous build (checked before any work)."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"output {out} exists and is not a folder", hint="choose another -o")
+    if out.is_dir() and any(out.iterdir()) and not (out / "manifest.json").is_file():
+        raise InputError(
+            f"output folder {out} is not empty and holds no bstool build (no manifest.json)",
+            hint="choose an empty or new folder with -o; bstool replaces only its own builds",
+        )
+
+
+def _write_atomically(
+    out: Path,
+    results: list[ModuleResult],
+    manifest: dict[str, Any],
+    wiring: str,
+    controller: dict[str, Any],
+) -> None:
+    """Write everything into a fresh folder beside ``out``, then swap it in with renames."""
+    _check_output(out)
+    parent = out.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=parent))
+    try:
+        for res in results:
+            folder = tmp / "modules" / res.plan.dirname
+            folder.mkdir(parents=True)
+            for name, text in res.sources.items():
+                (folder / name).write_text(text, encoding="utf-8")
+            for sr in res.slots:
+                if sr.eeprom is not None and sr.packets is not None:
+                    (folder / f"slot{sr.slot}.eeprom").write_bytes(sr.eeprom)
+                    (folder / f"slot{sr.slot}.packets").write_bytes(sr.packets)
+        fileio.write_text(tmp / "manifest.json", describe.dumps(manifest))
+        fileio.write_text(tmp / "WIRING.md", wiring)
+        fileio.write_text(tmp / describe.CONTROLLER_FILE, describe.dumps(controller))
+        old = None
+        if out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=parent))
+            os.replace(out, old / "build")
+        try:
+            os.replace(tmp, out)
+        except BaseException:
+            if old is not None:  # put the previous build back
+                os.replace(old / "build", out)
+                old.rmdir()
+            raise
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise

@@ -1,0 +1,80 @@
+"""The module-to-module link: frame bytes and serial settings (normative text: protocol/link.md).
+
+The generated PBASIC builds and checks exactly these bytes; this module is the Python mirror
+used by the tests, the test vectors and the twin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+BAUD = 4800
+BAUDMODE = 2_500_000 // BAUD - 20 + 32768
+"""BS2sx baudmode: 4800 baud, 8N1, true polarity, open drain (+32768), so a shared wire with a
+pull-up never has two drivers fighting (bs2sx.md §2)."""
+
+REQUEST_BASE = 0xA8
+"""Header of a master's frame: $A8 + (t mod 8)."""
+REPLY_BASE = 0xC8
+"""Header of a slave's reply: $C8 + (t mod 8)."""
+TRANSITION_MOD = 8
+
+REPLY_BASE_UNITS = 19
+"""A master's pulse plus its reply wait, in the BS2sx's 0.4 ms units (7.6 ms): the SERIN timeout
+for the reply is ``ReplyBase - pulse / 500`` (5.4-7.0 ms; the reply starts within ~1.5 ms). The
+constant gap between tries lets a slave that caught only the tail of a request listen again
+before the next try (timing.SLAVE_BASE_UNITS)."""
+
+RECOVER_UNITS = 21
+"""Slave's SERIN timeout (8.4 ms) right after it caught only part of a request: from its pulse it
+covers the master's gap between tries, so the next try is received whole."""
+
+
+def encode_state(s: int) -> int:
+    """One state as a self-checking byte: high nibble 15 − s, low nibble s."""
+    if not 0 <= s <= 15:
+        raise ValueError(f"state {s} is not 0..15")
+    return (15 - s) << 4 | s
+
+
+def decode_state(b: int) -> int | None:
+    """The state in a payload byte, or None if the check nibble is wrong."""
+    if (b >> 4) + (b & 15) != 15:
+        return None
+    return b & 15
+
+
+@dataclass(frozen=True)
+class Frame:
+    reply: bool
+    t: int  # transition number mod 8
+    states: tuple[int, ...]
+
+
+def encode_frame(reply: bool, t: int, states: Sequence[int]) -> bytes:
+    """Header ($A8/$C8 + t mod 8) followed by one self-checking byte per state."""
+    base = REPLY_BASE if reply else REQUEST_BASE
+    return bytes([base + t % TRANSITION_MOD, *(encode_state(s) for s in states)])
+
+
+def decode_frame(data: bytes, *, reply: bool, t: int, payload: int) -> Frame | None:
+    """Check a received frame as the module program does: length, header and every check nibble.
+
+    None means "not received": the module keeps waiting (or, after its deadline, uses the
+    neighbour's last known state).
+    """
+    if len(data) != 1 + payload:
+        return None
+    base = REPLY_BASE if reply else REQUEST_BASE
+    if data[0] != base + t % TRANSITION_MOD:
+        return None
+    states = [decode_state(b) for b in data[1:]]
+    if any(s is None for s in states):
+        return None
+    return Frame(reply, t % TRANSITION_MOD, tuple(s for s in states if s is not None))
+
+
+def byte_ms(baud: int = BAUD) -> float:
+    """Time on the wire of one 8N1 byte in milliseconds."""
+    return 10_000 / baud

@@ -1,0 +1,238 @@
+"""`bstool compile` end to end: outputs, determinism, errors, atomic output, tokenizer fit."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import pytest
+
+from bstool.cli import main
+from bstool.compile import build, compile_controller, templates_dir
+from bstool.compile.calibration import Servo, parse_calibration
+from bstool.errors import BuildError, InputError
+
+GOLDEN = Path(__file__).parent / "golden" / "compile"
+CA = GOLDEN / "ca2dsing.json"
+NN = GOLDEN / "nnsig.json"
+
+
+def _tree(folder: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+def test_cli_writes_every_module(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "build"
+    assert main(["compile", str(CA), "-o", str(out), "--period", "0.5"]) == 0
+    assert "compiled 30 modules" in capsys.readouterr().out
+    man = json.loads((out / "manifest.json").read_text())
+    assert man["format"] == "bstool.build/1" and len(man["modules"]) == 30
+    assert [e["module"] for e in man["flash_order"]][:2] == ["0.0", "0.1"]
+    assert man["flash_order"][0]["slots"] == [2, 1, 0]
+    for entry in man["modules"]:
+        main_bsx = (out / entry["entry"]).read_text()
+        assert main_bsx.startswith("' {$STAMP BS2sx, rules1.bsx, rules2.bsx}\n' {$PBASIC 2.5}\n")
+        assert f'DEBUG "bstool {entry["label"]} {man["controller"]["hash8"]}", CR' in main_bsx
+        assert entry["timing"]["longest_servo_gap_s"] <= 0.025
+        assert entry["ram_bytes"] <= 26
+    assert (out / "WIRING.md").read_text().startswith("# Wiring for controller")
+
+
+def test_output_is_deterministic(tmp_path: Path) -> None:
+    for ctrl in (CA, NN):
+        compile_controller(ctrl, tmp_path / "a", period=0.5)
+        compile_controller(ctrl, tmp_path / "b", period=0.5)
+        assert _tree(tmp_path / "a") == _tree(tmp_path / "b")
+
+
+def test_module_option_and_rebuild_replaces(tmp_path: Path) -> None:
+    out = tmp_path / "build"
+    compile_controller(CA, out, period=0.5)
+    (out / "stale.txt").write_text("from an old build")
+    compile_controller(NN, out, period=0.5, modules=["2.3", "L0.M1"])
+    assert sorted(p.name for p in (out / "modules").iterdir()) == ["L0.M1", "L2.M3"]
+    assert not (out / "stale.txt").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp folders
+
+
+def test_unknown_module(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="leg 7") as err:
+        compile_controller(CA, tmp_path / "b", modules=["7.0"])
+    assert err.value.hint and "4.5" in err.value.hint
+    assert not (tmp_path / "b").exists()
+
+
+def test_errors_leave_previous_build_untouched(tmp_path: Path) -> None:
+    out = tmp_path / "build"
+    compile_controller(CA, out, period=0.5)
+    before = _tree(out)
+    bad = tmp_path / "servos.json"
+    bad.write_text('{"format": "bstool.servos/1", "modules": {"1.1": {"direction": 2}}}')
+    assert main(["compile", str(NN), "-o", str(out), "--calibration", str(bad)]) == 5
+    assert _tree(out) == before
+
+
+def test_refuses_foreign_output_folder(tmp_path: Path) -> None:
+    (tmp_path / "mine.txt").write_text("precious")
+    with pytest.raises(InputError, match="not empty"):
+        compile_controller(CA, tmp_path, period=0.5)
+    assert (tmp_path / "mine.txt").read_text() == "precious"
+
+
+def test_period_too_short(tmp_path: Path) -> None:
+    with pytest.raises(BuildError, match="too short") as err:
+        compile_controller(CA, tmp_path / "b", period=0.05)
+    assert err.value.hint and "--period" in err.value.hint
+
+
+@pytest.mark.parametrize(
+    ("obj", "match"),
+    [
+        ([], "expected a JSON object"),
+        ({"format": "x"}, "format"),
+        ({"format": "bstool.servos/1", "default": {"centre_us": "a"}}, "expected a number"),
+        ({"format": "bstool.servos/1", "default": {"wobble": 1}}, "unknown field"),
+        ({"format": "bstool.servos/1", "default": {"min_us": 2000, "max_us": 1000}}, "min_us"),
+        ({"format": "bstool.servos/1", "default": {"us_per_rad": 0}}, "> 0"),
+        ({"format": "bstool.servos/1", "default": {"centre_us": 3000}}, "outside|min_us"),
+        ({"format": "bstool.servos/1", "legs": 4}, "legs = 4"),
+    ],
+)
+def test_invalid_calibration(obj: object, match: str) -> None:
+    with pytest.raises(BuildError, match=match) as err:
+        parse_calibration(obj, "servos.json", 5, 6)
+    assert err.value.hint
+
+
+def test_calibration_unknown_module() -> None:
+    with pytest.raises(InputError, match="module 6"):
+        parse_calibration({"format": "bstool.servos/1", "modules": {"0.6": {}}}, "s.json", 5, 6)
+
+
+def test_calibration_overrides_one_module(tmp_path: Path) -> None:
+    cal = tmp_path / "servos.json"
+    cal.write_text(
+        json.dumps(
+            {
+                "format": "bstool.servos/1",
+                "default": {"centre_us": 1520},
+                "modules": {"1.2": {"direction": -1, "max_us": 2000}},
+            }
+        )
+    )
+    compile_controller(NN, tmp_path / "b", calibration=cal, period=0.5, tokenize=False)
+    man = json.loads((tmp_path / "b" / "manifest.json").read_text())
+    servo = {m["module"]: m["servo"] for m in man["modules"]}
+    assert servo["0.0"]["pulsout"][0] == round(
+        (1520 - 1000 / (3.14159265358979 / 2) * 1.0471975511965976) / 0.8
+    )
+    flipped = servo["1.2"]["pulsout"]
+    assert flipped == sorted(flipped, reverse=True) and max(flipped) == 2500  # 2000 µs limit
+    assert servo["1.2"]["clipped_states"] == [0, 1, 2]  # above 2000 µs
+
+
+def test_default_servo_covers_the_range() -> None:
+    pulses = Servo().pulses()
+    assert pulses[0] == 1042 and pulses[-1] == 2708  # 833 µs and 2167 µs: ±60°
+    assert Servo().clipped() == []
+
+
+def test_templates_dir_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    assert (templates_dir() / "ca_main.bsx.j2").is_file()
+    monkeypatch.setenv("BSTOOL_TEMPLATES", str(tmp_path))
+    assert templates_dir() != tmp_path  # falls back when the folder holds no templates
+
+
+def test_missing_controller(tmp_path: Path) -> None:
+    assert main(["compile", str(tmp_path / "nope.json"), "-o", str(tmp_path / "b")]) == 2
+    assert not (tmp_path / "b").exists()
+
+
+def _tokenizer_ready() -> bool:
+    return build._tokenizer() is not None
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not _tokenizer_ready(), reason="bstool.tokenizer.tokenize_file not landed yet")
+@pytest.mark.parametrize("model", ["ca1d", "ca2dsing", "ca2ddiff", "nnsig", "nnsin"])
+def test_every_program_tokenizes_and_fits(model: str, tmp_path: Path) -> None:
+    res = compile_controller(GOLDEN / f"{model}.json", tmp_path / "b", period=0.5)
+    assert res.tokenized
+    for mod in res.modules:
+        for sr in mod.slots:
+            assert sr.program_bytes is not None and sr.data_bytes is not None
+            assert sr.program_bytes + sr.data_bytes <= 2048
+            assert sr.eeprom is not None and len(sr.eeprom) == 2048
+            assert (
+                tmp_path / "b" / "modules" / mod.plan.dirname / f"slot{sr.slot}.eeprom"
+            ).is_file()
+        assert mod.ram_bytes <= 26
+
+
+def test_slot_that_does_not_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The tokenizer's error 124 becomes a BuildError naming the slot and the overflow."""
+    from types import SimpleNamespace
+
+    from bstool.errors import SourceError
+
+    def fake_tokenize(path: Path) -> object:
+        text = (path.parent / "rules1.bsx").read_text()
+        if text.count("$") > 100:  # the real table "does not fit"; the probe has one byte
+            raise SourceError(
+                "Data occupies same location as program",
+                file=str(path.parent / "rules1.bsx"),
+                line=30,
+                column=1,
+                code=124,
+            )
+        image = SimpleNamespace(program_bytes=1100, data_bytes=1)
+        return SimpleNamespace(slots={0: image, 1: image, 2: image})
+
+    monkeypatch.setattr(build, "_tokenizer", lambda: fake_tokenize)
+    with pytest.raises(
+        BuildError, match=r"slot 1 \(rules1.bsx\) does not fit: 76 bytes over"
+    ) as err:
+        compile_controller(CA, tmp_path / "b", period=0.5, modules=["0.0"])
+    assert err.value.hint and "RULE_SLOTS" in err.value.hint
+    assert not (tmp_path / "b").exists()
+
+
+def test_ram_overflow(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(build, "ram_estimate", lambda plan: 27)
+    with pytest.raises(BuildError, match="27 bytes of RAM"):
+        compile_controller(NN, tmp_path / "b", period=0.5, tokenize=False)
+
+
+def test_build_holds_the_controller(tmp_path: Path) -> None:
+    """build/controller.json is the compiled controller (same hash), listed in the manifest, so
+    `bstool twin BUILD` compares with it by default."""
+    from bstool.controllers import controller_hash, load_controller
+
+    res = compile_controller(NN, tmp_path / "b", period=0.5, tokenize=False)
+    man = json.loads((tmp_path / "b" / "manifest.json").read_text())
+    copy = tmp_path / "b" / man["controller"]["copy"]
+    assert man["controller"]["copy"] == "controller.json"
+    assert (
+        controller_hash(load_controller(copy)) == res.controller_hash == man["controller"]["hash"]
+    )
+
+
+def test_nn_manifest_lists_bypass_wires_and_timing(tmp_path: Path) -> None:
+    compile_controller(NN, tmp_path / "b", period=0.5, tokenize=False)
+    man = json.loads((tmp_path / "b" / "manifest.json").read_text())
+    legs, modules = man["robot"]["legs"], man["robot"]["modules"]
+    bypass = [w for w in man["links"] if w["bypass"]]
+    assert len(bypass) == legs * (modules - 2)
+    assert all((w["master_pin"], w["slave_pin"]) == (3, 2) for w in bypass)
+    assert len(man["links"]) - len(bypass) == legs * (modules - 1)
+    for m in man["modules"]:
+        assert {"pin": 13, "use": "pad"} in m["pins"]
+        assert m["transition_ms"] == 500 == round(m["timing"]["nominal_transition_s"] * 1000)
+        assert m["free_exchange_ms"] <= m["exchange_allowance_ms"] < m["transition_ms"]
+    wiring = (tmp_path / "b" / "WIRING.md").read_text()
+    assert "bypass" in wiring and "P13" in wiring

@@ -1,0 +1,105 @@
+"""The proof that what we flash is what evolved (issue 7), for each of the five models:
+
+shipped controller → bstool compile → tokenize → bstool flash (all 30 twins, over the
+programming protocol, through the `bstwin://` URLs of a --ports file) → run on the robot twin →
+every module's states equal `bstool states` for 60+ transitions; the same with one module dead
+from the start equals `bstool states --fail L.M`; the disc path matches `bstool simulate` within
+the tolerance of docs/robot-twin.md; the manifest's timing estimates agree with the twin.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bstool.builtin import MODELS as BUILTIN
+from bstool.builtin import builtin_controller
+from bstool.cli import main
+from bstool.controllers import load_controller
+from bstool.moduleid import ModuleId
+from hil_mock.fleet import make_fleet
+from hil_mock.robot import RobotTwin, load_build
+
+pytestmark = pytest.mark.slow
+
+LONG = 60  # transitions compared exactly
+PATH_TRANSITIONS = 5  # transitions over which the path must match the simulator
+PATH_TOLERANCE = 0.15  # of the simulated path's length, or PATH_FLOOR_M, whichever is larger
+PATH_FLOOR_M = 0.01
+PERIOD_TOLERANCE = 0.03  # measured mean period against the compiled period
+
+
+@pytest.fixture(scope="module", params=BUILTIN)
+def flashed(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    model = request.param
+    source = builtin_controller(model)
+    build = tmp_path_factory.mktemp(model) / "build"
+    assert main(["compile", str(source), "-o", str(build)]) == 0
+    manifest = load_build(build)
+    fleet = make_fleet(manifest.legs, manifest.modules)
+    ports = build.parent / "ports.json"
+    ports.write_text(json.dumps({str(m): url for m, url in fleet.urls.items()}))
+    assert main(["flash", "--all", "--ports", str(ports), str(build), "-q"]) == 0
+    yield model, load_controller(source), manifest, fleet
+    fleet.close()
+
+
+def test_flashed_images_are_the_build(flashed) -> None:  # type: ignore[no-untyped-def]
+    _, _, build, fleet = flashed
+    for mid, eeprom in fleet.eeproms.items():
+        for slot, image in build.images(mid).items():
+            assert eeprom.slot(slot) == image
+
+
+def test_states_equal_the_reference(flashed) -> None:  # type: ignore[no-untyped-def]
+    _, ctrl, build, fleet = flashed
+    result = RobotTwin(build, eeproms=dict(fleet.eeproms), physics=False).run(LONG)
+    assert result.stalled == []
+    np.testing.assert_array_equal(
+        result.state_array(build.legs, build.modules, LONG), ctrl.states(LONG)
+    )
+    hash8 = build.manifest["controller"]["hash8"]
+    assert all(a == f"bstool {m.label} {hash8}" for m, a in result.announcements.items())
+    mean, _ = result.period_stats()  # every module keeps the compiled period
+    assert abs(mean - build.period) <= PERIOD_TOLERANCE * build.period
+
+
+@pytest.mark.parametrize("dead", [ModuleId(0, 0), ModuleId(2, 3)])
+def test_a_dead_module_equals_the_failed_reference(flashed, dead: ModuleId) -> None:  # type: ignore[no-untyped-def]
+    _, ctrl, build, fleet = flashed
+    twin = RobotTwin(build, eeproms=dict(fleet.eeproms), failed=[dead], physics=False)
+    result = twin.run(LONG)
+    np.testing.assert_array_equal(
+        result.state_array(build.legs, build.modules, LONG), ctrl.states(LONG, failed=[dead])
+    )
+
+
+def test_path_and_timing_agree_with_simulator_and_manifest(flashed) -> None:  # type: ignore[no-untyped-def]
+    from hil_mock.check import reference_simulator
+
+    _, ctrl, build, fleet = flashed
+    result = RobotTwin(build, eeproms=dict(fleet.eeproms)).run(PATH_TRANSITIONS)
+    sim = reference_simulator(build).run(ctrl.states(PATH_TRANSITIONS))
+    twin_path = result.path - result.path[0]
+    sim_path = sim.path - sim.path[0]
+    length = float(np.linalg.norm(np.diff(sim_path, axis=0), axis=1).sum())
+    tolerance = max(PATH_FLOOR_M, PATH_TOLERANCE * length)
+    assert np.abs(twin_path - sim_path).max() <= tolerance
+    # timing: the servo never starved beyond the estimate
+    for m in build.manifest["modules"]:
+        mid = ModuleId(*map(int, m["module"].split(".")))
+        assert result.servo_gaps[mid] <= m["timing"]["longest_servo_gap_s"] * 1.1 + 0.001
+        assert result.servo_gaps[mid] <= 0.025 + 1e-6
+
+
+def test_twin_cli_reports_equal(
+    flashed, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:  # type: ignore[no-untyped-def]
+    model, _, build, _ = flashed
+    code = main(["twin", str(build.root), "-T", "6", "--no-physics", "--json", "-q",
+                 "--controller", str(builtin_controller(model))])  # fmt: skip
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0 and out["states_equal"] and out["announcements_ok"]
