@@ -45,14 +45,28 @@ COLUMNS = (  # name, width, decimals (None: text)
     ("keep80", 6, 1),
     ("keep100", 7, 1),
     ("mean_MD", 7, 1),
+    ("fail_d", 6, 4),
     ("evolve_s", 8, 0),
 )
 
 
 def variants(args: argparse.Namespace) -> dict[str, list[str]]:
+    """Each variant's extra ``bstool evolve`` flags. ``plain-equal`` is the plain GA given as
+    many simulations as the 5-simulations-per-candidate variants (more generations)."""
     faults = ["--coevolve-faults", "--parasites", str(args.parasites)]
     faults += ["--parasite-k", args.parasite_k]
-    return {"plain": [], f"robust-{args.robust}": ["--robust", args.robust], "coevolve": faults}
+    equal = ["--gens", str(args.gens * (1 + args.parasites))]
+    every = {
+        "plain": [],
+        "plain-equal": equal,
+        f"robust-{args.robust}": ["--robust", args.robust],
+        "coevolve": faults,
+    }
+    wanted = args.variants or ["plain", f"robust-{args.robust}", "coevolve"]
+    unknown = [v for v in wanted if v not in every]
+    if unknown:
+        raise SystemExit(f"unknown variants {unknown}; choose from {sorted(every)}")
+    return {name: every[name] for name in wanted}
 
 
 def evolve(model: str, flags: list[str], seed: int, out: Path, args: argparse.Namespace) -> float:
@@ -63,8 +77,9 @@ def evolve(model: str, flags: list[str], seed: int, out: Path, args: argparse.Na
         argv = ["evolve", "--resume", str(out), *common]
     else:
         argv = ["evolve", model, "--out", str(out), "--seed", str(seed), "--pop", str(args.pop)]
-        argv += ["--gens", str(args.gens), "--transitions", str(args.transitions)]
-        argv += [*flags, *common]
+        if "--gens" not in flags:
+            argv += ["--gens", str(args.gens)]
+        argv += ["--transitions", str(args.transitions), *flags, *common]
     if bstool_main(argv) != 0:
         raise SystemExit(f"bstool {' '.join(argv)} failed")
     return time.perf_counter() - start
@@ -85,6 +100,8 @@ def measure(best: Path, ev: BatchEvaluator, transitions: int) -> dict[str, float
         "keep80": faults.count_at_least(80.0),
         "keep100": faults.count_at_least(100.0),
         "mean_MD": summarize(faults.runs).get("mean", math.nan),
+        # absolute: M_D is relative to the healthy distance, so a slow host scores high on it
+        "fail_d": sum(r.distance for r in faults.runs) / len(faults.runs),
     }
 
 
@@ -117,6 +134,12 @@ def main() -> None:
     parser.add_argument("--parasites", type=int, default=4)
     parser.add_argument("--parasite-k", default="1..2")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--variants",
+        nargs="+",
+        help="subset of: plain, plain-equal (plain with 1 + parasites times the generations), "
+        "robust-mean/robust-worst, coevolve (default: plain, robust, coevolve)",
+    )
     parser.add_argument("--out", type=Path, default=None, help="keep run directories here")
     args = parser.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="compare-evolution-"))
@@ -147,7 +170,8 @@ def main() -> None:
           f" coevolve: mean of healthy + {args.parasites} parasite runs against the last"
           f" parasites). d_rot0: healthy distance as evolved; rot_*: distance over the"
           f" {spec.legs} leg rotations; rot_range = (max-min)/mean; keep80/keep100: of {cells}"
-          f" single failures; mean_MD: mean M_D (%) over them.")  # fmt: skip
+          f" single failures; mean_MD: mean M_D (%) over them; fail_d: mean distance (m) with"
+          f" one module failed.")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -232,6 +232,21 @@ def test_report_from_a_run_directory_and_a_controller(
     assert (out / "index.html").read_text() == html
 
 
+def test_report_multi_failure_curves(controller_file: Path, tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    inputs = [str(controller_file), str(controller_file)]  # two entries: the loop runs twice
+    args = ["report", *inputs, "-o", str(out), "-T", "2", "--extrapolate", "3"]
+    assert main([*args, "--multi-failures", "2", "-q"]) == 0
+    assert _png(out / "multi.png")[0] > 100
+    data = json.loads((out / "report.json").read_text())
+    assert data["multi_k"] == ["1", "2", "3", "4", "5"]
+    by_k = data["entries"][1]["multi_failures"]
+    assert {k: v["n"] for k, v in by_k.items()} == {str(k): 2.0 for k in range(1, 6)}
+    for stats in by_k.values():  # medians are real M_D values, within the run's extremes
+        assert stats["min"] <= stats["median"] <= stats["max"]
+    assert "Several modules failed at once" in (out / "index.html").read_text()
+
+
 def test_fitness_plot_puts_parasites_on_their_own_axis(tmp_path: Path) -> None:
     from bstool.evolve.engine import HistoryRow
     from bstool.experiments.plots import plot_fitness

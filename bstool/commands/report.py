@@ -15,20 +15,19 @@ import click
     show_default=True,
     help="Directory for index.html, report.json and the PNGs (replaced as a whole).",
 )
+@click.option("-T", "--transitions", type=click.IntRange(min=1), default=30, show_default=True,
+              help="MAX_TRANS for paths, failures and rotations.")  # fmt: skip
+@click.option("--extrapolate", type=click.IntRange(min=2), default=120, show_default=True,
+              help="Transitions of the extrapolation curves.")  # fmt: skip
 @click.option(
-    "-T",
-    "--transitions",
-    type=click.IntRange(min=1),
-    default=30,
+    "--multi-failures",
+    "multi_samples",
+    type=click.IntRange(min=0),
+    default=0,
     show_default=True,
-    help="MAX_TRANS for paths, failures and rotations.",
-)
-@click.option(
-    "--extrapolate",
-    type=click.IntRange(min=2),
-    default=120,
-    show_default=True,
-    help="Transitions of the extrapolation curves.",
+    metavar="SAMPLES",
+    help="Also fail K = 1..5 random modules at once, SAMPLES sets per K, and plot the median "
+    "M_D against K per controller (0: skip; costs 5 x SAMPLES runs per controller).",
 )
 @click.option("--workers", type=click.IntRange(min=1), default=None, help="Physics threads.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
@@ -37,6 +36,7 @@ def command(
     out: str,
     transitions: int,
     extrapolate: int,
+    multi_samples: int,
     workers: int | None,
     quiet: bool,
 ) -> None:
@@ -49,5 +49,7 @@ def command(
         if not quiet:
             click.echo(f"... {msg}", err=True)
 
-    index = build_report(inputs, out, transitions, extrapolate, workers, progress=say)
+    index = build_report(
+        inputs, out, transitions, extrapolate, workers, progress=say, multi_samples=multi_samples
+    )
     click.echo(f"report: {index}")

@@ -147,6 +147,8 @@ def manifest(
             "reply_base": link.REPLY_BASE,
             "reply_base_units": link.REPLY_BASE_UNITS,
             "recover_units": link.RECOVER_UNITS,
+            "linger_units": link.LINGER_UNITS,
+            "linger_listens": link.LINGER_LISTENS,
         },
         "announcement": "bstool L<leg>.M<module> <hash8>\\r on DEBUG (pin 16, 9600 baud)",
         "modules": mods,

@@ -26,9 +26,25 @@ for the reply is ``ReplyBase - pulse / 500`` (5.4-7.0 ms; the reply starts withi
 constant gap between tries lets a slave that caught only the tail of a request listen again
 before the next try (timing.SLAVE_BASE_UNITS)."""
 
-RECOVER_UNITS = 21
-"""Slave's SERIN timeout (8.4 ms) right after it caught only part of a request: from its pulse it
-covers the master's gap between tries, so the next try is received whole."""
+RECOVER_UNITS = 17
+"""A slave's pulse plus its listening (6.8 ms; SERIN timeout ``Recover - pulse / 500``) after it
+caught a damaged or partial request: begun within ``SlaveBase`` of the request's end, it lasts
+past the start of the master's next try; and since the timeout restarts on every byte, a partial
+frame caught in it still leaves the slave listening again before the try after that (pulse +
+timeout < the master's ``ReplyBase`` gap between tries), so retries can never lock step with
+the slave's pulses."""
+
+LINGER_UNITS = 10
+"""Timeout of each of a slave's listens after its reply (4.0 ms): plus a pulse it is shorter
+than the gap between a master's tries, so a damaged retry caught in the linger (the timeout
+restarts after its last byte) leaves the slave listening again before the next try."""
+
+LINGER_LISTENS = 3
+"""A slave's listens after its reply, back to back: together (12 ms + statements) they last past the
+second byte of a master's retry, which starts at the latest ``ReplyBase`` plus a few statements
+after the last reply byte the master got (if the reply was lost or damaged), so even a retry
+whose header was lost is heard. Silence through all of them ends the exchange (protocol/link.md
+§4)."""
 
 
 def encode_state(s: int) -> int:

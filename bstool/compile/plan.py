@@ -135,11 +135,26 @@ def build_plans(
     return [p for p in every if wanted is None or p.mid in wanted]
 
 
-def _iteration_ms(plan: ModulePlan, ll: LocalLink) -> float:
+def _gap_ms(plan: ModulePlan, ll: LocalLink) -> float:
+    """The longest time between two servo pulses on this wire."""
     pulse_max_ms = max(plan.pulses) * timing.PULSOUT_UNIT_MS
     if ll.master:
         return timing.master_gap_ms(pulse_max_ms, ll.tx_payload, ll.rx_payload)
     return timing.slave_gap_ms(pulse_max_ms, ll.rx_payload, ll.tx_payload)
+
+
+def _iteration_ms(plan: ModulePlan, ll: LocalLink) -> float:
+    """A fault-free exchange on this wire: a master's answered try; a slave's wait, reply and
+    linger."""
+    pulse_max_ms = max(plan.pulses) * timing.PULSOUT_UNIT_MS
+    if ll.master:
+        return timing.master_gap_ms(pulse_max_ms, ll.tx_payload, ll.rx_payload)
+    return timing.slave_exchange_ms(pulse_max_ms, ll.rx_payload, ll.tx_payload)
+
+
+def _linger_ms(plan: ModulePlan) -> float:
+    """NN: the linger after receiving on the chain wire, before computing and sending on."""
+    return sum(timing.linger_ms() for ll in plan.links if not ll.master and not ll.link.bypass)
 
 
 def _compute_ms(plan: ModulePlan) -> float:
@@ -154,12 +169,16 @@ def _own_exchange_ms(plan: ModulePlan, plans: list[ModulePlan]) -> float:
         upstream = [
             p for p in plans if p.mid.leg == plan.mid.leg and p.mid.module < plan.mid.module
         ]
-        own = sum(
-            _iteration_ms(p, ll) + _compute_ms(p)
-            for p in upstream
-            for ll in p.links
-            if ll.master and not ll.link.bypass and ll.peer.module == p.mid.module + 1
-        ) + sum(_iteration_ms(plan, ll) for ll in plan.links if ll.master and not ll.link.bypass)
+        own = (
+            sum(
+                _iteration_ms(p, ll) + _compute_ms(p) + _linger_ms(p)
+                for p in upstream
+                for ll in p.links
+                if ll.master and not ll.link.bypass and ll.peer.module == p.mid.module + 1
+            )
+            + sum(_iteration_ms(plan, ll) for ll in plan.links if ll.master and not ll.link.bypass)
+            + _linger_ms(plan)
+        )
     return own + _compute_ms(plan)
 
 
@@ -178,6 +197,7 @@ def exchange_ms(plans: list[ModulePlan]) -> float:
                 for ll in p.links
                 if ll.master and not ll.link.bypass
             )
+            + _linger_ms(p)
             for p in plans
         ]
         longest = max(longest, sum(relay) / max(1, len({p.mid.leg for p in plans})))
@@ -302,7 +322,7 @@ def estimates(plan: ModulePlan, exchange: float) -> dict[str, float]:
     hold = timing.hold_frame_ms(pulse_max_ms, plan.hold_pause)
     # the last holding (or roll-call) frame runs on through the lookup to the next PULSOUT
     iters = [hold + _compute_ms(plan) + timing.AFTER_MS]
-    iters += [_iteration_ms(plan, ll) for ll in plan.links]
+    iters += [_gap_ms(plan, ll) for ll in plan.links]
     gap = max(iters)
     last_deadline = max((ll.deadline for ll in plan.links), default=0)
     silent = last_deadline + gap + _compute_ms(plan)

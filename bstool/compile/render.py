@@ -72,6 +72,8 @@ def _common(plan: ModulePlan) -> dict[str, object]:
         "reply_base": link.REPLY_BASE_UNITS,
         "slave_base": timing.SLAVE_BASE_UNITS,
         "recover": link.RECOVER_UNITS,
+        "linger": link.LINGER_UNITS,
+        "lingers": link.LINGER_LISTENS,
         "l_per_slot": tables.L_PER_SLOT,
     }
 

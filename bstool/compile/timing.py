@@ -14,7 +14,13 @@ give-up deadlines in order.
 
 from __future__ import annotations
 
-from bstool.compile.link import RECOVER_UNITS, REPLY_BASE_UNITS, byte_ms
+from bstool.compile.link import (
+    LINGER_LISTENS,
+    LINGER_UNITS,
+    RECOVER_UNITS,
+    REPLY_BASE_UNITS,
+    byte_ms,
+)
 
 STMT_MS = 0.1
 RUN_MS = 0.3
@@ -42,6 +48,11 @@ a request. If it got only the tail, it pulses once and listens for ``Recover``
 leaves ``ReplyBase`` between its tries, more than the slave's listen + pulse): an exchange needs
 at most two tries, and retries cannot lock step with the slave's pulses."""
 SLAVE_STATEMENTS = 13  # the miss path of a slave try, in STMT_MS (its SERIN/IF are long)
+LINGER_STATEMENTS = 2
+"""Each listen of a silent linger besides its SERIN: its timeout's jump and IF hdr."""
+MISS_STATEMENTS = 4
+"""A master's statements from a failed reply (timeout or check) to its next request: clock, IF,
+PULSOUT, SEROUT."""
 MASTER_STATEMENTS = 12  # the miss path of a master try (calibrated on the twin: 12.9-13.0 ms)
 SLAVE_TURNAROUND_MS = 4.0  # request end -> reply start: the slave's checks and one pulse
 
@@ -119,9 +130,24 @@ def master_ok_ms(pulse_ms: float, tx_payload: int, rx_payload: int) -> float:
     )
 
 
+def linger_ms() -> float:
+    """A slave's linger after its reply that hears nothing (the master got the reply):
+    ``LINGER_LISTENS`` listens of ``Linger`` back to back, setting it up and ending it."""
+    listen = LINGER_UNITS * SERIN_UNIT_MS + (1 + LINGER_STATEMENTS) * STMT_MS
+    return LINGER_LISTENS * listen + 4 * STMT_MS
+
+
+def retry_after_ms() -> float:
+    """Latest start of a master's retry after its request ended or after the last reply byte
+    it received (its SERIN timeout restarts on every byte): pulse + reply wait is ``ReplyBase``
+    whatever the pulse, plus the statements of a miss."""
+    return (REPLY_BASE_UNITS + 1) * SERIN_UNIT_MS + MISS_STATEMENTS * STMT_MS
+
+
 def slave_ok_ms(pulse_ms: float, rx_payload: int, tx_payload: int) -> float:
     """A slave's successful try: on average half its listening before the request starts, the
-    request, its checks, one pulse and its reply."""
+    request, its checks, one pulse, its reply and a silent linger (a repeated request adds
+    this again: the wait for it replaces the silence)."""
     listen = SLAVE_BASE_UNITS * SERIN_UNIT_MS - pulse_ms
     return (
         pulse_ms
@@ -130,12 +156,13 @@ def slave_ok_ms(pulse_ms: float, rx_payload: int, tx_payload: int) -> float:
         + (SLAVE_STATEMENTS + 2 * rx_payload) * STMT_MS
         + pulse_ms
         + (1 + tx_payload) * byte_ms()
+        + linger_ms()
     )
 
 
 def recover_ms(pulse_ms: float) -> float:
-    """A slave that caught only the tail of a request: the tail (about one byte), a pulse, and
-    the wait for the master's next try (its reply wait less what the tail took)."""
+    """A slave that caught a damaged or partial request: the listening it came in, the tail,
+    a pulse and the wait for the master's next try, about the master's gap between tries."""
     return pulse_ms + REPLY_BASE_UNITS * SERIN_UNIT_MS - pulse_ms
 
 
@@ -149,6 +176,7 @@ def master_gap_ms(pulse_max_ms: float, tx_payload: int, rx_payload: int) -> floa
     common = pulse_max_ms + 3 * STMT_MS + (1 + tx_payload) * byte_ms() + STMT_MS
     answered = (
         SLAVE_TURNAROUND_MS
+        + 2 * max(0, tx_payload - 1) * STMT_MS  # the slave checks and stores every state
         + (1 + rx_payload) * byte_ms()
         + (1 + 2 * rx_payload) * STMT_MS
         + STMT_MS
@@ -158,16 +186,40 @@ def master_gap_ms(pulse_max_ms: float, tx_payload: int, rx_payload: int) -> floa
     return common + max(answered, unanswered)
 
 
+def _slave_receive_ms(pulse_max_ms: float, rx_payload: int) -> float:
+    """A slave's pulse, then a request arriving at the end of its listening (normal or
+    recovery: pulse + timeout is ``SlaveBase`` or ``Recover``, less than one unit) and its
+    checks."""
+    del pulse_max_ms  # pulse-compensated
+    wait = (max(SLAVE_BASE_UNITS, RECOVER_UNITS) + 1) * SERIN_UNIT_MS
+    return 4 * STMT_MS + wait + (1 + rx_payload) * byte_ms() + (1 + 2 * rx_payload) * STMT_MS
+
+
 def slave_gap_ms(pulse_max_ms: float, rx_payload: int, tx_payload: int) -> float:
     """A slave's longest time between two pulses: a request arriving at the end of its listening
-    (normal or recovery) and its checks; then (after a pulse) its reply."""
-    wait = max(SLAVE_BASE_UNITS, RECOVER_UNITS) * SERIN_UNIT_MS
-    receive = (
-        pulse_max_ms
-        + 4 * STMT_MS
-        + wait
-        + (1 + rx_payload) * byte_ms()
-        + (1 + 2 * rx_payload) * STMT_MS
+    (normal or recovery) and its checks; or, from the pulse before its reply, the reply and a
+    silent linger up to the next link's pulse, or the reply, the master's retry (the reply was
+    lost) and its checks."""
+    receive = _slave_receive_ms(pulse_max_ms, rx_payload)
+    reply_end = pulse_max_ms + 2 * STMT_MS + (1 + tx_payload) * byte_ms()
+    quiet = reply_end + linger_ms() + 2 * RUN_MS + AFTER_MS  # the last link: via the rule slot
+    checks = (1 + 2 * rx_payload) * STMT_MS
+    # the master's timer ran from its request's end (just before the slave's checks) or from
+    # the last reply byte it got; a reply it got whole but corrupt is retried at once
+    start = max(retry_after_ms() - checks, reply_end + MISS_STATEMENTS * STMT_MS + pulse_max_ms)
+    if tx_payload:  # a dropped header: the payload still restarts the master's timeout
+        start = max(start, reply_end + retry_after_ms())
+    retry = start + (1 + rx_payload) * byte_ms() + checks
+    return max(receive, quiet, retry)
+
+
+def slave_exchange_ms(pulse_max_ms: float, rx_payload: int, tx_payload: int) -> float:
+    """A slave's fault-free time on one wire: a request arriving at the end of its listening,
+    its checks, pulse and reply, and the silent linger."""
+    return (
+        _slave_receive_ms(pulse_max_ms, rx_payload)
+        + pulse_max_ms
+        + 2 * STMT_MS
+        + (1 + tx_payload) * byte_ms()
+        + linger_ms()
     )
-    reply = pulse_max_ms + 2 * STMT_MS + (1 + tx_payload) * byte_ms() + STMT_MS + AFTER_MS
-    return max(receive, reply)

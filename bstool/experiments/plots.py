@@ -61,8 +61,10 @@ def plot_multi_failures(
     """Median M_D (with the interquartile band) against the number of failed modules."""
     fig = _figure(6.0, 4.2)
     ax = fig.add_subplot()
+    every_k: set[int] = set()
     for name, by_k in curves.items():
         ks = sorted(by_k)
+        every_k.update(ks)
         stats = [summarize(by_k[k]) for k in ks]
         med = [s.get("median", np.nan) for s in stats]
         ax.plot(ks, med, marker="o", label=name)
@@ -72,6 +74,7 @@ def plot_multi_failures(
         )  # fmt: skip
     ax.axhline(100, color="0.3", linewidth=0.8)
     ax.axhline(80, color="0.6", linewidth=0.8, linestyle="--")
+    ax.set_xticks(sorted(every_k))  # K is a count: integer ticks only
     ax.set_xlabel("failed modules K (random)")
     ax.set_ylabel("M_D (%): median and quartiles")
     ax.set_title("Mobility under multiple failures")

@@ -15,7 +15,7 @@ import numpy as np
 
 from bstool import __version__, fileio
 from bstool.errors import InputError
-from bstool.experiments import common
+from bstool.experiments import common, mobility
 from bstool.experiments.extrapolate import reinit_states
 from bstool.experiments.mobility import SingleFaults, distances_with, single_failures
 from bstool.experiments.paths import distance_curve, path_shape
@@ -64,9 +64,12 @@ def build_report(
     extrapolate: int = 120,
     workers: int | None = None,
     progress: Progress | None = None,
+    multi_samples: int = 0,
+    multi_k: Sequence[int] = (1, 2, 3, 4, 5),
 ) -> Path:
     """Run every experiment for every input and write ``out_dir/index.html`` (atomically: the
-    whole directory appears at once)."""
+    whole directory appears at once). ``multi_samples`` > 0 adds the multiple-failure curves:
+    that many random sets of K failed modules per K in ``multi_k`` (seed K, as `bstool faults`)."""
     from bstool.experiments import plots
     from bstool.sim.batch import BatchEvaluator
     from bstool.sim.plot import plot_paths
@@ -81,6 +84,7 @@ def build_report(
     try:
         rows: list[dict[str, Any]] = []
         faults: dict[str, SingleFaults] = {}
+        multi: dict[str, dict[int, list[mobility.FaultRun]]] = {}
         runs = []
         for e in entries:
             c = e.loaded.controller
@@ -96,6 +100,14 @@ def build_report(
                 say(f"{e.name}: leg rotations and perturbed starts")
                 spread = rotation_spread(c, evaluate, transitions)
                 perturbed = perturbation_spread(c, e.loaded.spec, transitions, samples=3)
+                if multi_samples > 0:
+                    say(f"{e.name}: {multi_samples} random sets of K failed modules per K")
+                    multi[e.name] = {
+                        k: mobility.random_failures(
+                            c, evaluate, transitions, k, multi_samples, k, base.distance
+                        )
+                        for k in multi_k
+                    }
             faults[e.name] = f
             runs.append((e.name, base))
             curves = {"plain": distance_curve(plain.path), "reinit": distance_curve(reinit.path)}
@@ -106,7 +118,7 @@ def build_report(
                 transitions,
                 title=f"{e.name}: distance against transition",
             )
-            mobility = np.array([r.mobility for r in f.runs], dtype=float)
+            md = np.array([r.mobility for r in f.runs], dtype=float)
             rows.append(
                 {
                     "name": e.name,
@@ -116,11 +128,14 @@ def build_report(
                     "distance": base.distance,
                     "shape": path_shape(base.path).to_json(),
                     "faults": f.to_json(),
-                    "mean_mobility": float(np.nanmean(mobility)) if mobility.size else 0.0,
+                    "mean_mobility": float(np.nanmean(md)) if md.size else 0.0,
                     "extrapolation": {k: v.tolist() for k, v in curves.items()},
                     "extrapolation_figure": ext_png,
                     "rotation": spread.to_json(),
                     "perturbation": perturbed.to_json(),
+                    "multi_failures": {
+                        str(k): mobility.summarize(v) for k, v in multi.get(e.name, {}).items()
+                    },
                     "history": [vars(r) for r in e.history] if e.history else None,
                 }
             )
@@ -128,6 +143,10 @@ def build_report(
         figures: dict[str, str | None] = {"paths": "paths.png", "faults": "faults.png"}
         plot_paths(tmp / "paths.png", runs, title="Disc paths")
         plots.plot_single_failures(tmp / "faults.png", faults)
+        figures["multi"] = None
+        if multi:
+            plots.plot_multi_failures(tmp / "multi.png", multi)
+            figures["multi"] = "multi.png"
         histories = {e.name: e.history for e in entries if e.history}
         figures["fitness"] = None
         if histories:
@@ -140,6 +159,7 @@ def build_report(
             "transitions": transitions,
             "extrapolate": extrapolate,
             "entries": rows,
+            "multi_k": [str(k) for k in multi_k] if multi else [],
             "models": models,
             "figures": figures,
         }

@@ -91,6 +91,40 @@ def frames() -> dict[str, object]:
                     {"from": "2.3", "to": "2.2", "bytes": _hex(link.encode_frame(True, 6, []))},
                 ],
             },
+            {
+                "description": "Lost reply at t=4 on the ca1d wire L0.M0 (master) - L0.M1 "
+                "(slave): the reply's header is dropped on the wire, the master retries with the "
+                "same request, the slave (still lingering, §4) stores the same state again and "
+                "sends the same reply.",
+                "steps": [
+                    {
+                        "from": "0.0",
+                        "to": "0.1",
+                        "bytes": _hex(link.encode_frame(False, 4, [9])),
+                        "note": "request",
+                    },
+                    {
+                        "from": "0.1",
+                        "to": "0.0",
+                        "bytes": _hex(link.encode_frame(True, 4, [2])),
+                        "note": "reply; the master receives only $D2: not a reply header",
+                        "lost": [0],
+                    },
+                    {
+                        "from": "0.0",
+                        "to": "0.1",
+                        "bytes": _hex(link.encode_frame(False, 4, [9])),
+                        "note": "retry at most ReplyBase + a few statements after $D2",
+                    },
+                    {
+                        "from": "0.1",
+                        "to": "0.0",
+                        "bytes": _hex(link.encode_frame(True, 4, [2])),
+                        "note": "the same reply; then the slave lingers again and hears silence",
+                    },
+                ],
+                "result": {"0.0 knows 0.1": 2, "0.1 knows 0.0": 9},
+            },
         ],
     }
 
