@@ -1,17 +1,20 @@
 """Summarise ``bstool report`` outputs (report.json) into the Markdown tables of docs/results.md.
 
-    python bench/results_table.py REPORT_DIR [REPORT_DIR ...]
+    python bench/results_table.py REPORT_DIR [REPORT_DIR ...] [--figures DIR]
 
 Every entry of every report is one evolved controller (one model, one seed). Prints a table
 per run, a table per model (mean ± standard deviation over its runs) and, where a report was
 made with ``--multi-failures``, the median degree of mobility against the number of failed
-modules. Only reads files; the long runs themselves are in bench/experiments.sh.
+modules. ``--figures DIR`` also draws the distance-against-transition curves of the first
+report's controllers on one figure (paper Fig. 19) and copies its paths, failures and
+multiple-failure figures there. Only reads reports; the long runs are in bench/experiments.sh.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -105,11 +108,30 @@ def multi(entries: list[dict[str, Any]]) -> str | None:
     return "\n".join(rows)
 
 
+def figures(report: Path, entries: list[dict[str, Any]], out: Path) -> None:
+    from bstool.experiments.plots import plot_distance_curves
+
+    out.mkdir(parents=True, exist_ok=True)
+    mine = [e for e in entries if e["report"] == report.name]
+    curves = {e["name"]: np.array(e["extrapolation"]["plain"]) for e in mine}
+    title = "Distance from the start against transition (plain)"
+    plot_distance_curves(out / "extrapolation.png", curves, mine[0]["T"], title=title)
+    curves = {e["name"]: np.array(e["extrapolation"]["reinit"]) for e in mine}
+    title = f"Re-initialised to R^0 every {mine[0]['T']} transitions"
+    plot_distance_curves(out / "extrapolation-reinit.png", curves, mine[0]["T"], title=title)
+    for name in ("paths.png", "faults.png", "multi.png"):
+        if (report / name).exists():
+            shutil.copyfile(report / name, out / name)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("reports", type=Path, nargs="+", help="bstool report output folders")
+    parser.add_argument("--figures", type=Path, help="write the figures of the first report here")
     args = parser.parse_args()
     entries = load(args.reports)
+    if args.figures:
+        figures(args.reports[0], entries, args.figures)
     print("## Per model (mean ± sd over runs)\n")
     print(per_model(entries))
     print("\n## Per run\n")

@@ -236,6 +236,14 @@ class RobotTwin:
             m if isinstance(m, ModuleId) else parse_module(m, legs, modules) for m in failed
         }
         cuts = {frozenset(c) for c in cut}
+        wired = {frozenset((parse_module(w["master"]), parse_module(w["slave"])))
+                 for w in build.manifest["links"]}  # fmt: skip
+        for c in cuts - wired:
+            a, b = sorted(c) if len(c) == 2 else (*c, *c)
+            raise InputError(
+                f"cannot cut {a}-{b}: no wire joins these modules in this build",
+                hint="WIRING.md lists the wires",
+            )
         self.wires: dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]] = {}
         for w in build.manifest["links"]:
             a, b = parse_module(w["master"]), parse_module(w["slave"])

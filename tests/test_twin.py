@@ -174,3 +174,5 @@ def test_twin_cli_video_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "no manifest.json" in capsys.readouterr().err
     assert main(["twin", str(build), "--cut", "0.1"]) == 2
     assert "bad --cut" in capsys.readouterr().err
+    assert main(["twin", str(build), "--cut", "0.1-0.1", "--no-physics", "-T", "1"]) == 2
+    assert "no wire joins" in capsys.readouterr().err
