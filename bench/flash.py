@@ -7,12 +7,6 @@ Target: ratio <= 1.15 (docs/flash.md). Run: python bench/flash.py [--repeat N]
 
 from __future__ import annotations
 
-import sys
-
-# bench/ holds scripts named like stdlib modules (tokenize.py): do not let them shadow those
-if sys.path and sys.path[0].rstrip("/").endswith("bench"):
-    sys.path.pop(0)
-
 import argparse
 import random
 import time

@@ -8,15 +8,9 @@ Target (issue 7): >= 50,000 instructions/s per core (the real BS2sx runs ~10,000
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-# bench/tokenize.py would shadow the standard library's tokenize module (used by inspect)
-if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
-    sys.path.pop(0)
-
 import argparse
 import time
+from pathlib import Path
 
 VECTORS = Path(__file__).resolve().parents[2] / "shared" / "vectors" / "tokenizer"
 CASES = [

@@ -11,21 +11,15 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
+import argparse
+import threading
+import time
+from collections.abc import Callable
 
-# bench/ holds scripts named like stdlib modules (tokenize.py): do not let them shadow it.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).parent.resolve()]
+import mujoco
+import numpy as np
 
-import argparse  # noqa: E402
-import threading  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-from bstool.sim import BatchEvaluator, Simulator  # noqa: E402
+from bstool.sim import BatchEvaluator, Simulator
 
 
 def interleaved(repeat: int, fns: dict[str, Callable[[], object]]) -> dict[str, float]:
