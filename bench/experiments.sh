@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The long runs behind docs/results.md: evolve all five models over several seeds at two
 # budgets, report on them, multiple failures, and plain GA vs co-evolution with parasites.
-# About 80 minutes on 2 cores. Usage: bash bench/experiments.sh [OUT_DIR]  (default /tmp/exp)
+# About 1.5 hours on 2 cores. Usage: bash bench/experiments.sh [OUT_DIR]  (default /tmp/exp)
 # Then: python bench/results_table.py OUT/report-s1 OUT/report-s2 ... (tables of docs/results.md)
 set -euo pipefail
 OUT=${1:-/tmp/exp}
@@ -37,5 +37,5 @@ python "$HERE/bench/compare_evolution.py" --model ca1d --seeds 1 2 3 4 --pop 20 
   --transitions 30 --variants plain plain-equal coevolve --workers 2 --out cmp-ca1d \
   > cmp-ca1d.txt
 # larger budget: pop 30, 30 generations (ca2ddiff: 2 outer loops)
-for seed in 1 2 3; do evolve_all big/ 30 30 2 "$seed"; done
-for seed in 1 2 3; do report_seed big/ "$seed"; done
+for seed in 1 2 3 4 5; do evolve_all big/ 30 30 2 "$seed"; done
+for seed in 1 2 3 4 5; do report_seed big/ "$seed"; done

@@ -41,3 +41,16 @@ def parse_module(text: str, legs: int | None = None, modules: int | None = None)
 def all_modules(legs: int, modules: int) -> list[ModuleId]:
     """Every module in the canonical order: leg by leg, lead first."""
     return [ModuleId(i, j) for i in range(legs) for j in range(modules)]
+
+
+def parse_failure_time(
+    text: str, legs: int | None = None, modules: int | None = None, option: str = "--die"
+) -> tuple[ModuleId, int]:
+    """Parse ``"2.3@7"``: module 2.3 fails at transition 7 (it shows S^7, then holds it)."""
+    where, sep, when = text.partition("@")
+    if not sep or not when.strip().isdigit():
+        raise InputError(
+            f"bad {option} {text!r}: expected L.M@T, e.g. 2.3@7 (module 2.3 fails after "
+            "transition 7; T is a whole number >= 0)"
+        )
+    return parse_module(where, legs, modules), int(when)

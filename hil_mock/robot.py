@@ -208,7 +208,10 @@ class RobotTwin:
     :class:`hil_mock.eeprom.Eeprom`) replaces the build's images, so a robot flashed through the
     programming protocol runs exactly what was flashed. ``failed`` modules never run (silent on
     their links) and their servo holds the R^0 angle (the paper's failed module: a fixed state);
-    with ``limp_failed`` it goes limp instead. ``cut`` removes links. ``noise`` is the chance that
+    with ``limp_failed`` it goes limp instead. ``die`` maps modules to the transition T at which
+    they die during the run: the stamp stops for good once it has shown S^T on its servo and sent
+    S^T to its neighbours (:meth:`_dies_at_pulse`, docs/twin.md); its servo then holds S^T (limp
+    with ``limp_failed``). ``cut`` removes links. ``noise`` is the chance that
     a byte on a link is hit (half of the hits drop it, half flip one bit), drawn from ``seed``.
     """
 
@@ -218,6 +221,7 @@ class RobotTwin:
         *,
         eeproms: Mapping[ModuleId, object] | None = None,
         failed: Iterable[ModuleId | str] = (),
+        die: Mapping[ModuleId, int] | Mapping[str, int] | None = None,
         limp_failed: bool = False,
         cut: Iterable[tuple[ModuleId, ModuleId]] = (),
         noise: float = 0.0,
@@ -235,6 +239,18 @@ class RobotTwin:
         self.failed = {
             m if isinstance(m, ModuleId) else parse_module(m, legs, modules) for m in failed
         }
+        self.die: dict[ModuleId, int] = {}
+        for key, when in (die or {}).items():
+            mid = key if isinstance(key, ModuleId) else parse_module(key, legs, modules)
+            if int(when) < 0:
+                raise InputError(f"module {mid} cannot die at transition {when}: T must be >= 0")
+            if mid in self.failed:
+                raise InputError(f"module {mid} is both failed from power-up and dying at {when}")
+            self.die[mid] = int(when)
+        self.limp_failed = limp_failed
+        self.died: dict[ModuleId, int] = {}  # module -> virtual ns when its stamp stopped
+        self._killed = False
+        self._nn = str(build.manifest.get("controller", {}).get("model", "")).startswith("nn")
         cuts = {frozenset(c) for c in cut}
         wired = {frozenset((parse_module(w["master"]), parse_module(w["slave"])))
                  for w in build.manifest["links"]}  # fmt: skip
@@ -274,7 +290,9 @@ class RobotTwin:
                     hint="re-run `bstool compile` with this bstool version",
                 )
             self._readers[mid] = (_ram_reader(ram["state"]), _ram_reader(ram["tn"]))
-        self.reference = next((m for m in self.order if m in self.stamps), None)
+        self.ran: dict[ModuleId, Stamp] = dict(self.stamps)  # every stamp that ever ran
+        live = [m for m in self.order if m in self.stamps and m not in self.die]
+        self.reference = live[0] if live else next(iter(self.stamps), None)
         self.t_ns = 0
         self.path: list[tuple[float, float]] = []
 
@@ -342,7 +360,40 @@ class RobotTwin:
             if stamp is not None:
                 stamp.deliver_byte(peer_pin, value, start_ns, mode)
 
+    def _dies_at_pulse(self, mid: ModuleId, stamp: Stamp, after: bool) -> bool:
+        """Whether a dying module stops at this servo pulse (``after``: once it went out).
+
+        The module dies once its servo shows S^T and its neighbours have had S^T. A CA program
+        shows S^T, then exchanges it, then looks up S^(T+1): it stops at the first pulse of
+        S^(T+1), before it goes out (tn has changed T + 1 times; nothing happens on a link
+        between the lookup and that pulse). An NN program relays S^T downstream first and then
+        shows it: it stops right after the first pulse of S^T (tn has changed T times)."""
+        when = self.die.get(mid)
+        if when is None:
+            return False
+        rec = self.records[mid]
+        if self._nn:
+            return after and len(rec.states) == when + 1
+        return (
+            not after
+            and len(rec.states) == when + 1
+            and self._readers[mid][1](stamp) != rec.last_tn
+        )
+
+    def _kill(self, mid: ModuleId, stamp: Stamp, t_ns: int) -> None:
+        stamp.status = Status.STOPPED  # for good: ends the running run_until at once
+        stamp.brk = True
+        del self.stamps[mid]
+        self.died[mid] = t_ns
+        self.servos[mid].limp = self.limp_failed
+        self._killed = True
+
     def _servo_pulse(self, mid: ModuleId, servo: ServoTrack, start_ns: int, width_ns: int) -> None:
+        if mid not in self.stamps:
+            return
+        if self._dies_at_pulse(mid, self.stamps[mid], after=False):
+            self._kill(mid, self.stamps[mid], start_ns)
+            return
         if servo.pulses:
             servo.longest_gap_ns = max(servo.longest_gap_ns, start_ns - servo.last_pulse_ns)
         servo.pulses += 1
@@ -358,6 +409,8 @@ class RobotTwin:
             rec.last_tn = tn_of(stamp)
         else:  # a transition's time is the first pulse of its new state
             self._observe(mid, stamp)
+        if self._dies_at_pulse(mid, stamp, after=True):
+            self._kill(mid, stamp, start_ns)
 
     def _observe(self, mid: ModuleId, stamp: Stamp) -> None:
         rec = self.records[mid]
@@ -376,7 +429,11 @@ class RobotTwin:
     def _advance_stamps(self, limit_ns: int) -> None:
         """Run every stamp up to ``limit_ns``, always the one furthest behind first."""
         stamps = list(self.stamps.items())
+        self._killed = False
         while True:
+            if self._killed:  # a module died in the last step
+                stamps = list(self.stamps.items())
+                self._killed = False
             best: tuple[ModuleId, Stamp] | None = None
             h1 = h2 = NEVER
             for item in stamps:
@@ -421,6 +478,8 @@ class RobotTwin:
             self.t_ns += chunk_ns
             if on_chunk is not None:
                 on_chunk(self)
+            if not self.stamps:
+                break
             done = min(len(self.records[m].states) for m in self.stamps)
             if progress is not None and done > done_before:
                 progress(min(done, transitions + 1) - min(done_before, transitions + 1))
@@ -438,17 +497,21 @@ class RobotTwin:
             if mid in self.failed:
                 states[mid] = rec.states * (transitions + 1)
                 continue
-            states[mid] = rec.states[: transitions + 1]
+            if mid in self.died:  # holds its last state S^T for ever
+                rec_states = rec.states + rec.states[-1:] * (transitions + 1 - len(rec.states))
+                states[mid] = rec_states[: transitions + 1]
+            else:
+                states[mid] = rec.states[: transitions + 1]
             periods[mid] = [
                 (b - a) / NS for a, b in zip(rec.times_ns[1:], rec.times_ns[2:], strict=False)
             ][: max(0, transitions - 1)]
-            if len(rec.states) < transitions + 1:
+            if len(states[mid]) < transitions + 1:
                 stalled.append(mid)
         path = np.array(self.path[: transitions + 1], dtype=float).reshape(-1, 2)
-        gaps = {mid: s.longest_gap_ns / NS for mid, s in self.servos.items() if mid in self.stamps}
+        gaps = {mid: s.longest_gap_ns / NS for mid, s in self.servos.items() if mid in self.ran}
         announcements = {
             mid: bytes(stamp.debug).decode("ascii", "replace").split("\r")[0]
-            for mid, stamp in self.stamps.items()
+            for mid, stamp in self.ran.items()
         }
         return TwinResult(
             states=states,
@@ -458,5 +521,5 @@ class RobotTwin:
             stalled=stalled,
             announcements=announcements,
             virtual_seconds=self.t_ns / NS,
-            instructions=sum(s.instructions for s in self.stamps.values()),
+            instructions=sum(s.instructions for s in self.ran.values()),
         )

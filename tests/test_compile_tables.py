@@ -78,6 +78,28 @@ def test_nn_tables_reproduce_reference(
 
 @SETTINGS
 @given(
+    model=st.sampled_from(["ca1d", "ca2dsing", "ca2ddiff", "nnsig", "nnsin"]),
+    seed=st.integers(0, 2**32 - 1),
+    legs=st.integers(1, 5),
+    modules=st.integers(1, 6),
+    leg=st.integers(0, 4),
+    module=st.integers(0, 5),
+    at=st.integers(0, 12),
+)
+def test_a_module_dying_mid_run_matches_failed_at(
+    model: str, seed: int, legs: int, modules: int, leg: int, module: int, at: int
+) -> None:
+    """The compiled plans with one module dying after S^T (its neighbours keep S^T, an NN
+    bypass takes over) equal ``controller.states(T, failed_at=...)``."""
+    ctrl = _controller(model, seed, legs, modules)
+    mid = ModuleId(leg % legs, module % modules)
+    plans = build_plans(ctrl, DEFAULT, 0.5, "0" * 8)
+    got = emulate.run(plans, 16, die={mid: at})
+    assert np.array_equal(got, ctrl.states(16, failed_at={mid: at}))
+
+
+@SETTINGS
+@given(
     model=st.sampled_from(["nnsig", "nnsin"]),
     seed=st.integers(0, 2**32 - 1),
     ups=st.lists(st.integers(0, 15), min_size=5, max_size=5),

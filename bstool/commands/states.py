@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from bstool.controllers import load_controller
+from bstool.moduleid import parse_failure_time
 
 DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS, used when the file has no max_trans
 
@@ -25,13 +26,24 @@ DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS, used when the file has no max
     metavar="L.M",
     help="A failed module (leg.module, 0 = lead) that keeps its R^0 state; repeatable.",
 )
-def command(controller: str, transitions: int | None, failed: tuple[str, ...]) -> None:
+@click.option(
+    "--fail-at",
+    "fail_at",
+    multiple=True,
+    metavar="L.M@T",
+    help="A module that fails during the run: it follows its rule up to S^T, then holds S^T "
+    "(T = 0 is --fail); repeatable.",
+)
+def command(
+    controller: str, transitions: int | None, failed: tuple[str, ...], fail_at: tuple[str, ...]
+) -> None:
     """Print CONTROLLER's state sequence R^0..R^T: a JSON array of T+1 frames, each a list of
     n legs of m module states (0..15). Every later stage is checked against this output."""
     ctrl = load_controller(controller)
     if transitions is None:
         transitions = ctrl.max_trans if ctrl.max_trans is not None else DEFAULT_TRANSITIONS
-    frames = ctrl.states(transitions, failed)
+    late = dict(parse_failure_time(f, ctrl.legs, ctrl.modules, "--fail-at") for f in fail_at)
+    frames = ctrl.states(transitions, failed, failed_at=late)
     lines = [
         "[" + ",".join("[" + ",".join(str(s) for s in leg) + "]" for leg in frame) + "]"
         for frame in frames.tolist()

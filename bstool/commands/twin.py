@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from bstool.errors import InputError
-from bstool.moduleid import ModuleId, parse_module
+from bstool.moduleid import ModuleId, parse_failure_time, parse_module
 
 
 @click.command("twin")
@@ -22,7 +22,17 @@ from bstool.moduleid import ModuleId, parse_module
     metavar="L.M",
     help="A dead module: its program never runs (silent links); its servo holds R^0.",
 )
-@click.option("--limp-failed", is_flag=True, help="Failed modules' servos go limp instead.")
+@click.option(
+    "--die",
+    "die",
+    multiple=True,
+    metavar="L.M@T",
+    help="A module that dies during the run, once it has shown and sent S^T; its servo then "
+    "holds S^T. Compared with `bstool states --fail-at L.M@T`; repeatable.",
+)
+@click.option(
+    "--limp-failed", is_flag=True, help="Failed and dying modules' servos go limp instead."
+)
 @click.option(
     "--cut",
     multiple=True,
@@ -68,6 +78,7 @@ def command(
     build: str,
     transitions: int,
     failed: tuple[str, ...],
+    die: tuple[str, ...],
     limp_failed: bool,
     cut: tuple[str, ...],
     link_noise: float,
@@ -94,6 +105,7 @@ def command(
 
     b = load_build(build)
     fail_ids = [parse_module(f, b.legs, b.modules) for f in failed]
+    die_at = dict(parse_failure_time(d, b.legs, b.modules) for d in die)
     cuts = [_parse_cut(c, b.legs, b.modules) for c in cut]
     ctrl = _controller(b.root, controller)
     eeproms = None
@@ -108,13 +120,15 @@ def command(
             raise InputError(f"flashing the twins failed: {bad}")
         eeproms = dict(fleet.eeproms)
     try:
-        twin = RobotTwin(b, eeproms=eeproms, failed=fail_ids, limp_failed=limp_failed,
+        twin = RobotTwin(b, eeproms=eeproms, failed=fail_ids, die=die_at, limp_failed=limp_failed,
                          cut=cuts, noise=link_noise, seed=seed, physics=not no_physics)  # fmt: skip
         result = _run(twin, transitions, quiet or as_json, video, timeout_s)
     finally:
         if fleet is not None:
             fleet.close()
-    reference = ctrl.states(transitions, failed=fail_ids) if ctrl is not None else None
+    reference = (
+        ctrl.states(transitions, failed=fail_ids, failed_at=die_at) if ctrl is not None else None
+    )
     sim_distance = None
     if ctrl is not None and not no_physics:
         from hil_mock.check import reference_simulator

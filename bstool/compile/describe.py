@@ -149,6 +149,7 @@ def manifest(
             "recover_units": link.RECOVER_UNITS,
             "linger_units": link.LINGER_UNITS,
             "linger_listens": link.LINGER_LISTENS,
+            "silent_transitions": link.SILENT_TRANSITIONS,
         },
         "announcement": "bstool L<leg>.M<module> <hash8>\\r on DEBUG (pin 16, 9600 baud)",
         "modules": mods,

@@ -5,12 +5,14 @@ the bypass wire j-1 -> j+1 while j is dead) exactly as the templates do, looking
 state in the compiled tables (the packed rule slots, the NN sum tables). A dead module never
 answers, so its neighbours keep their last known state of it — R^0, the compiled-in value. The
 tests compare this with the reference ``controller.states(T, failed)``; the twin engineer can
-compare the BS2sx twin with it too.
+compare the BS2sx twin with it too. ``die`` modules run up to S^T and are dead from then on
+(their neighbours keep S^T, an NN bypass runs from the next transition on), as the programs
+behave once their neighbours have given up on them (protocol/link.md §5).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -21,24 +23,31 @@ from bstool.moduleid import ModuleId
 
 
 def run(
-    plans: Sequence[ModulePlan], transitions: int, dead: Iterable[ModuleId] = ()
+    plans: Sequence[ModulePlan],
+    transitions: int,
+    dead: Iterable[ModuleId] = (),
+    die: Mapping[ModuleId, int] | None = None,
 ) -> npt.NDArray[np.int64]:
-    """States (T+1, n, m) that the compiled robot shows; ``dead`` modules never run."""
+    """States (T+1, n, m) that the compiled robot shows; ``dead`` modules never run, ``die``
+    modules stop after showing S^T."""
     by_id = {p.mid: p for p in plans}
     n = max(p.mid.leg for p in plans) + 1
     m = max(p.mid.module for p in plans) + 1
-    dead_set = set(dead)
+    from_start = set(dead)
     state = {p.mid: p.r0 for p in plans}
     known = {p.mid: [s for _, s in p.known] for p in plans}
     frames = [_grid(state, n, m)]
     family = plans[0].family
-    for _ in range(transitions):
+    for t in range(transitions):
+        # stopped: shows S^t for good; a CA module still exchanged S^t before it stopped
+        dead_set = from_start | {mid for mid, when in (die or {}).items() if when <= t}
         if family == "ca":
+            silent = from_start | {mid for mid, when in (die or {}).items() if when < t}
             for p in plans:
                 if p.mid in dead_set:
                     continue
                 for i, (peer, _) in enumerate(p.known):
-                    if peer not in dead_set:
+                    if peer not in silent:
                         known[p.mid][i] = state[peer]
             nxt = dict(state)
             for p in plans:

@@ -34,6 +34,13 @@ frame caught in it still leaves the slave listening again before the try after t
 timeout < the master's ``ReplyBase`` gap between tries), so retries can never lock step with
 the slave's pulses."""
 
+SILENT_TRANSITIONS = 2
+"""After the roll call, a neighbour silent up to the deadline in this many transitions running is
+marked dead like one silent in the roll call (never waited for again; NN bypasses switch on).
+Two, not one: a live neighbour is marked dead only if two exchanges in a row are lost up to the
+deadline (one is lost with about 5e-7 chance at 1 % byte noise, protocol/link.md §4), since the
+mark is for good; more than two would slow the robot for more transitions after a death."""
+
 LINGER_UNITS = 10
 """Timeout of each of a slave's listens after its reply (4.0 ms): plus a pulse it is shorter
 than the gap between a master's tries, so a damaged retry caught in the linger (the timeout

@@ -291,7 +291,8 @@ def _plan(
                 master=master,
                 pin=lk.pin(mid),
                 port=PORT_NAMES[pin_role(ctrl.model, ctrl.legs, ctrl.modules, mid, peer)],
-                deadline=timing.DEADLINE_BASE_MS + (lk.colour + 1) * timing.WINDOW_MS,
+                deadline=timing.DEADLINE_BASE_MS
+                + (lk.colour + 1 + timing.BYPASS_EXTRA_WINDOWS * lk.bypass) * timing.WINDOW_MS,
                 first_deadline=timing.FIRST_BASE_MS + (lk.colour + 1) * timing.FIRST_WINDOW_MS,
                 iter_ms=max(1, round(miss)),
                 ok_ms=max(1, round(ok)),
@@ -326,8 +327,9 @@ def estimates(plan: ModulePlan, exchange: float) -> dict[str, float]:
     gap = max(iters)
     last_deadline = max((ll.deadline for ll in plan.links), default=0)
     silent = last_deadline + gap + _compute_ms(plan)
-    # a transition lasts hold_ms on the module's clock unless the exchange overran exch_ms
-    rest = plan.hold_ms - plan.exch_ms
+    # a transition lasts hold_ms on the module's clock unless the exchange overran exch_ms; an
+    # exchange past LATE_MS (a silent neighbour's wait) keeps one holding frame
+    rest = plan.hold_step if silent >= timing.LATE_MS else plan.hold_ms - plan.exch_ms
     return {
         "nominal_transition_s": round(plan.hold_ms / 1000, 4),
         "fault_free_exchange_s": round(exchange / 1000, 4),

@@ -74,6 +74,8 @@ def _common(plan: ModulePlan) -> dict[str, object]:
         "recover": link.RECOVER_UNITS,
         "linger": link.LINGER_UNITS,
         "lingers": link.LINGER_LISTENS,
+        "silent": link.SILENT_TRANSITIONS,
+        "late_ms": timing.LATE_MS,
         "l_per_slot": tables.L_PER_SLOT,
     }
 

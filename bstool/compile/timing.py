@@ -56,13 +56,30 @@ PULSOUT, SEROUT."""
 MASTER_STATEMENTS = 12  # the miss path of a master try (calibrated on the twin: 12.9-13.0 ms)
 SLAVE_TURNAROUND_MS = 4.0  # request end -> reply start: the slave's checks and one pulse
 
+MUTE_STATEMENTS = 1
+"""A successful exchange clears the wire's silent mark (``mute``, protocol/link.md §5)."""
+
 DEADLINE_BASE_MS = 300
 """Every give-up deadline starts with this: more than neighbours drift apart in normal running
 (a 2-D CA lead exchanges on 4 wires while its leg modules use 2, so they wait for it)."""
-WINDOW_MS = 150
+WINDOW_MS = 100
 """Each colour adds this to the deadline, so a module that gave up on a silent neighbour still
 reaches its later wires before those neighbours give up on it (with room for the clock
-estimate being ~10 % off over the whole wait)."""
+estimate being ~10 % off over the whole wait). Not more: a module that waited for a neighbour
+that died after the roll call runs late by about its deadline minus the period in the next
+transition, and its neighbours on wires up to 3 colours lower (2-D CA leads) must still meet
+it before their own deadlines (150 ms missed them; protocol/link.md §5)."""
+LATE_MS = DEADLINE_BASE_MS + WINDOW_MS
+"""An exchange that ends this late on the clock (the first give-up deadline) waited for a silent
+neighbour, directly or behind a neighbour that did: its clock is then capped one holding frame
+short of the period instead of at the allowance ExchMs, so it is only as late as the wait made
+it; capping at ExchMs would add a whole hold and leave it later than the silent neighbour's own
+neighbours (protocol/link.md §5)."""
+BYPASS_EXTRA_WINDOWS = 1
+"""An NN bypass j-1 -> j+1 waits one window longer than its colour says: in the transition in
+which module j first goes silent, j+1 reaches the bypass only at its chain wire's deadline
+(one window after j-1 did), and the two must still meet there with the slave's clock running
+a few % slow (one window left them about 30 ms)."""
 FIRST_BASE_MS = 1000
 """Deadline base of the roll call (first exchange after power-up): modules switched on within
 about a second of each other still find each other."""
@@ -126,7 +143,7 @@ def master_ok_ms(pulse_ms: float, tx_payload: int, rx_payload: int) -> float:
         + (1 + 2 * tx_payload) * STMT_MS
         + pulse_ms
         + (1 + rx_payload) * byte_ms()
-        + (MASTER_STATEMENTS + 2 * rx_payload) * STMT_MS
+        + (MASTER_STATEMENTS + MUTE_STATEMENTS + 2 * rx_payload) * STMT_MS
     )
 
 
@@ -153,7 +170,7 @@ def slave_ok_ms(pulse_ms: float, rx_payload: int, tx_payload: int) -> float:
         pulse_ms
         + listen / 2
         + (1 + rx_payload) * byte_ms()
-        + (SLAVE_STATEMENTS + 2 * rx_payload) * STMT_MS
+        + (SLAVE_STATEMENTS + MUTE_STATEMENTS + 2 * rx_payload) * STMT_MS
         + pulse_ms
         + (1 + tx_payload) * byte_ms()
         + linger_ms()
@@ -179,7 +196,7 @@ def master_gap_ms(pulse_max_ms: float, tx_payload: int, rx_payload: int) -> floa
         + 2 * max(0, tx_payload - 1) * STMT_MS  # the slave checks and stores every state
         + (1 + rx_payload) * byte_ms()
         + (1 + 2 * rx_payload) * STMT_MS
-        + STMT_MS
+        + (1 + MUTE_STATEMENTS) * STMT_MS
         + AFTER_MS
     )
     unanswered = REPLY_BASE_UNITS * SERIN_UNIT_MS + 2 * STMT_MS
@@ -202,7 +219,9 @@ def slave_gap_ms(pulse_max_ms: float, rx_payload: int, tx_payload: int) -> float
     lost) and its checks."""
     receive = _slave_receive_ms(pulse_max_ms, rx_payload)
     reply_end = pulse_max_ms + 2 * STMT_MS + (1 + tx_payload) * byte_ms()
-    quiet = reply_end + linger_ms() + 2 * RUN_MS + AFTER_MS  # the last link: via the rule slot
+    quiet = (
+        reply_end + MUTE_STATEMENTS * STMT_MS + linger_ms() + 2 * RUN_MS + AFTER_MS
+    )  # the last link: via the rule slot
     checks = (1 + 2 * rx_payload) * STMT_MS
     # the master's timer ran from its request's end (just before the slave's checks) or from
     # the last reply byte it got; a reply it got whole but corrupt is retried at once
@@ -219,7 +238,7 @@ def slave_exchange_ms(pulse_max_ms: float, rx_payload: int, tx_payload: int) -> 
     return (
         _slave_receive_ms(pulse_max_ms, rx_payload)
         + pulse_max_ms
-        + 2 * STMT_MS
+        + (2 + MUTE_STATEMENTS) * STMT_MS
         + (1 + tx_payload) * byte_ms()
         + linger_ms()
     )

@@ -19,7 +19,7 @@ import numpy.typing as npt
 from bstool import __version__, fileio
 from bstool.controllers.angles import K
 from bstool.controllers.reference import MODELS, NN_MODELS, nn_initial_reference
-from bstool.controllers.sequences import ca_sequences, nn_sequences
+from bstool.controllers.sequences import ca_sequences, nn_continue, nn_sequences
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
 
@@ -38,6 +38,7 @@ _HINT = "see docs/controllers.md for the format, or regenerate the file with `bs
 
 IntArray = npt.NDArray[np.int64]
 FailedSpec = Iterable[ModuleId | tuple[int, int] | str]
+FailedAtSpec = Mapping[ModuleId, int] | Mapping[tuple[int, int], int] | Mapping[str, int]
 
 
 def controller_hash(obj: Controller | Mapping[str, Any]) -> str:
@@ -90,11 +91,58 @@ class Controller:
             cells.append((mid.leg, mid.module))
         return cells
 
-    def states(self, transitions: int, failed: FailedSpec = ()) -> IntArray:
-        """R^0..R^T, shape (T+1, n, m); failed modules keep their R^0 state."""
+    def states(
+        self,
+        transitions: int,
+        failed: FailedSpec = (),
+        failed_at: FailedAtSpec | None = None,
+    ) -> IntArray:
+        """R^0..R^T, shape (T+1, n, m); failed modules keep their R^0 state.
+
+        ``failed_at`` maps modules to the transition T0 at which they fail during the run: such
+        a module follows its rule up to S^T0 and then holds S^T0 (T0 = 0 is ``failed``); its
+        neighbours (CA) and the modules after it (NN) read the held state.
+        """
         if transitions < 0:
             raise InputError(f"transitions must be 0 or more, got {transitions}")
         cells = self.failed_cells(failed)
+        late: dict[tuple[int, int], int] = {}
+        for item, when in (failed_at or {}).items():
+            (cell,) = self.failed_cells([item])
+            if int(when) < 0:
+                raise InputError(
+                    f"module {ModuleId(*cell)} fails at transition {when}: must be >= 0"
+                )
+            if cell not in cells:
+                late[cell] = min(int(when), late.get(cell, int(when)))
+        cells += [c for c, when in late.items() if when == 0]
+        times = sorted({when for when in late.values() if 0 < when < transitions})
+        if not times:
+            return self._states(transitions, cells)
+        frames = [self._states(times[0], cells)]
+        for start, end in zip(times, [*times[1:], transitions], strict=True):
+            cells += [c for c, when in late.items() if when == start]
+            frames.append(self._continue(frames[-1][-1], end - start, cells)[1:])
+        return np.concatenate(frames)
+
+    def _continue(
+        self, frame: IntArray, transitions: int, cells: list[tuple[int, int]]
+    ) -> IntArray:
+        """R^t..R^(t+transitions) from frame R^t; ``cells`` hold their state in R^t."""
+        if self.model in NN_MODELS:
+            assert self.weights is not None
+            return nn_continue(self.model, frame, self.weights, transitions, cells, self.k)
+        rules = self.rules()
+        seq = ca_sequences(
+            self.model,
+            np.asarray(frame)[None],
+            rules[None] if self.model == "ca2ddiff" else rules,
+            transitions,
+            cells,
+        )
+        return seq[0].astype(np.int64)
+
+    def _states(self, transitions: int, cells: list[tuple[int, int]]) -> IntArray:
         if self.model in NN_MODELS:
             assert self.weights is not None
             seq = nn_sequences(

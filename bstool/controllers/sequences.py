@@ -142,3 +142,28 @@ def nn_sequences(
     seq = np.take_along_axis(tables, lead_t[..., None], axis=2)  # (P, n, T+1, m)
     seq[:, :, 0, :] = r0
     return np.ascontiguousarray(seq.transpose(0, 2, 1, 3)).astype(np.uint8)
+
+
+def nn_continue(
+    model: str,
+    frame: IntArray,
+    weights: IntArray,
+    transitions: int,
+    failed: Iterable[Cell] = (),
+    k: int = K,
+) -> npt.NDArray[np.int64]:
+    """One NN run (T+1, n, m) that starts from the frame R^t (n, m) instead of power-up:
+    ``failed`` cells hold their state in ``frame``; working leads count on (eq. 10) and every
+    leg is propagated from its lead with the held states fixed (eq. 11)."""
+    start = np.asarray(frame, dtype=np.int64)
+    w = np.asarray(weights)[None]
+    n, m = start.shape
+    mask = _failed_mask(n, m, failed)
+    fixed = np.where(mask, start, -1)[None]
+    tables = nn_leg_tables(model, w, fixed, k)[0]  # (n, k, m)
+    t = np.arange(transitions + 1)
+    lead_t = np.where(mask[:, 0, None], start[:, 0, None], (start[:, 0, None] + t[None, :]) % k)
+    seq = np.take_along_axis(tables, lead_t[..., None], axis=1)  # (n, T+1, m)
+    out = np.ascontiguousarray(seq.transpose(1, 0, 2)).astype(np.int64)
+    out[0] = start
+    return out

@@ -1,0 +1,90 @@
+"""A module dying mid-run on the twin (``RobotTwin(die=...)``, ``bstool twin --die L.M@T``).
+
+The dying module stops once it has shown S^T and its neighbours have had S^T; its neighbours
+give up on it at their deadlines (keeping S^T, an NN bypass running in the same transition),
+mark it dead after two silent transitions, and the period recovers (protocol/link.md §5). The
+states equal ``controller.states(T, failed_at={module: T})`` from the first transition on.
+Figures for every module of every model: ``python bench/twin_die_sweep.py``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bstool.builtin import builtin_controller
+from bstool.cli import main
+from bstool.compile import link
+from bstool.controllers import load_controller
+from bstool.moduleid import ModuleId
+from bstool.robot import state_to_angle
+from hil_mock.robot import RobotTwin, load_build
+
+TRANSITIONS = 32
+SWITCH_OVER = 1 + link.SILENT_TRANSITIONS  # transitions after the death until the marks
+
+
+@pytest.fixture(scope="module", params=["ca2ddiff", "nnsin"])
+def build(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp(request.param) / "build"
+    assert main(["compile", str(builtin_controller(request.param)), "-o", str(out)]) == 0
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("dying", "at"), [(ModuleId(0, 0), 5), (ModuleId(2, 3), 7)])
+def test_a_module_dying_mid_run_equals_the_failed_at_reference(
+    build: Path, dying: ModuleId, at: int
+) -> None:
+    b = load_build(build)
+    ctrl = load_controller(build / "controller.json")
+    twin = RobotTwin(b, die={dying: at}, physics=False)
+    result = twin.run(TRANSITIONS)
+    assert result.stalled == []
+    assert list(twin.died) == [dying]
+    got = result.state_array(b.legs, b.modules, TRANSITIONS)
+    np.testing.assert_array_equal(got, ctrl.states(TRANSITIONS, failed_at={dying: at}))
+    # its servo holds S^T (the last target it was given)
+    held = int(got[at, dying.leg, dying.module])
+    assert twin.servos[dying].target == pytest.approx(
+        state_to_angle(held, b.manifest["robot"]["states"])
+    )
+    assert len(twin.records[dying].states) == at + 1
+    # after the switch-over the period is back within 3 % (period i ends transition i + 2)
+    after = [p for m, ps in result.periods.items() if m != dying for p in ps[at + SWITCH_OVER :]]
+    assert abs(np.mean(after) - b.period) <= 0.03 * b.period
+    assert max(result.servo_gaps.values()) <= 0.025
+
+
+def test_dying_at_0_and_limp(build: Path) -> None:
+    """``@0``: an NN module dies at its first pulse (before the roll call), so it is exactly a
+    module dead from power-up; a CA module takes part in the roll call and dies after it. Either
+    way the states are the reference's ``failed``; ``limp_failed`` makes its servo limp."""
+    b = load_build(build)
+    ctrl = load_controller(build / "controller.json")
+    dying = ModuleId(1, 2)
+    twin = RobotTwin(b, die={dying: 0}, limp_failed=True, physics=False)
+    result = twin.run(6)
+    np.testing.assert_array_equal(
+        result.state_array(b.legs, b.modules, 6), ctrl.states(6, failed=[dying])
+    )
+    assert twin.servos[dying].limp and list(twin.died) == [dying]
+
+
+def test_twin_cli_die(build: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["twin", str(build), "-T", "8", "--no-physics", "-q"]
+    assert main([*args, "--die", "0.1@3"]) == 0
+    assert "EQUAL to" in capsys.readouterr().out
+    for bad, said in [
+        ("0.1", "bad --die '0.1': expected L.M@T"),
+        ("0.1@x", "expected L.M@T"),
+        ("0.1@-1", "expected L.M@T"),
+        ("7.1@2", "unknown module 7.1"),
+    ]:
+        assert main([*args, "--die", bad]) == 2
+        err = capsys.readouterr().err
+        assert said in err and "Traceback" not in err
+    assert main([*args, "--die", "0.1@2", "--fail", "0.1"]) == 2
+    assert "both failed from power-up and dying" in capsys.readouterr().err
