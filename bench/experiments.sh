@@ -39,3 +39,7 @@ python "$HERE/bench/compare_evolution.py" --model ca1d --seeds 1 2 3 4 --pop 20 
 # larger budget: pop 30, 30 generations (ca2ddiff: 2 outer loops)
 for seed in 1 2 3 4 5; do evolve_all big/ 30 30 2 "$seed"; done
 for seed in 1 2 3 4 5; do report_seed big/ "$seed"; done
+bstool report big/nnsin-s1 big/nnsig-s1 big/ca1d-s1 big/ca2dsing-s1 big/ca2ddiff-s1 \
+  --multi-failures 20 -o big/report-multi-s1 -q
+# figures of docs/results/ (budget B, seed 1)
+python "$HERE/bench/results_table.py" big/report-multi-s1 --figures "$HERE/docs/results" > /dev/null
