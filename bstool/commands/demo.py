@@ -124,4 +124,8 @@ def _demo(
     say(f"{'twin speed':26}{'':14}{run.virtual_seconds / wall:15.1f}× real time")
     if rep.first_mismatch:
         say(f"first difference: {rep.first_mismatch}")
+    say("")
+    say("The states are the exact check. Distances agree only roughly: the stamps keep their own")
+    say("clocks (the period above), and contact-rich walking amplifies a few ms of timing after")
+    say("about 10 transitions (docs/twin.md, path tolerance).")
     return rep.states_equal and rep.announcements_ok
