@@ -91,3 +91,5 @@ def test_states_cli_fail_at(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
         assert main(["states", str(path), "--fail-at", bad]) == 2
         err = capsys.readouterr().err
         assert what in err and "Traceback" not in err
+    assert main(["states", str(path), "--fail", "0.1", "--fail-at", "0.1@2"]) == 2
+    assert "both failed from power-up and failing at 2" in capsys.readouterr().err

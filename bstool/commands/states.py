@@ -5,7 +5,8 @@ from __future__ import annotations
 import click
 
 from bstool.controllers import load_controller
-from bstool.moduleid import parse_failure_time
+from bstool.errors import InputError
+from bstool.moduleid import ModuleId, parse_failure_time
 
 DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS, used when the file has no max_trans
 
@@ -43,6 +44,11 @@ def command(
     if transitions is None:
         transitions = ctrl.max_trans if ctrl.max_trans is not None else DEFAULT_TRANSITIONS
     late = dict(parse_failure_time(f, ctrl.legs, ctrl.modules, "--fail-at") for f in fail_at)
+    dead = {ModuleId(*cell) for cell in ctrl.failed_cells(failed)}
+    for mid, when in late.items():
+        if mid in dead:
+            raise InputError(f"module {mid} is both failed from power-up and failing at {when}",
+                             hint="give it once: --fail L.M, or --fail-at L.M@T")  # fmt: skip
     frames = ctrl.states(transitions, failed, failed_at=late)
     lines = [
         "[" + ",".join("[" + ",".join(str(s) for s in leg) + "]" for leg in frame) + "]"
