@@ -1,6 +1,6 @@
-"""Every module dying alone mid-run on the twin: do the compiled programs equal the reference?
+"""Every module failing alone on the twin: do the compiled programs equal the reference?
 
-    python bench/twin_die_sweep.py [--models nnsin ca1d ...] [-T 30] [--at 5]
+    python bench/twin_die_sweep.py [--models nnsin ca1d ...] [-T 30] [--at 5 | --power-up]
 
 For each model, compiles the shipped controller, then for each of the n·m modules runs the
 twin (no physics) with that module dying at transition ``--at`` (``RobotTwin(die=...)``, i.e.
@@ -9,6 +9,9 @@ twin (no physics) with that module dying at transition ``--at`` (``RobotTwin(die
 dying modules gave exactly the reference, the mean period of the live modules before the death
 and after the switch-over (transitions at + 4 .. T, protocol/link.md §5), the slowest single
 transition in between, the longest servo gap, and the first mismatch if any.
+
+``--power-up`` instead kills each module from power-up (``bstool twin --fail L.M``) and
+compares with ``controller.states(T, failed=[module])``; it prints the range of mean periods.
 """
 
 from __future__ import annotations
@@ -42,6 +45,9 @@ def main() -> None:
     parser.add_argument("--models", nargs="+", default=list(MODELS))
     parser.add_argument("-T", "--transitions", type=int, default=30)
     parser.add_argument("--at", type=int, default=5, help="transition at which the module dies")
+    parser.add_argument(
+        "--power-up", action="store_true", help="dead from power-up (--fail) instead of --at"
+    )
     args = parser.parse_args()
     T, at = args.transitions, args.at
     with tempfile.TemporaryDirectory() as tmp:
@@ -55,17 +61,31 @@ def main() -> None:
             start = time.perf_counter()
             modules = all_modules(ctrl.legs, ctrl.modules)
             for dead in modules:
-                result = RobotTwin(build, die={dead: at}, physics=False).run(T)
+                if args.power_up:
+                    result = RobotTwin(build, failed=[dead], physics=False).run(T)
+                    want = ctrl.states(T, failed=[dead])
+                else:
+                    result = RobotTwin(build, die={dead: at}, physics=False).run(T)
+                    want = ctrl.states(T, failed_at={dead: at})
                 got = result.state_array(ctrl.legs, ctrl.modules, T)
-                if np.array_equal(got, ctrl.states(T, failed_at={dead: at})) and not result.stalled:
+                if np.array_equal(got, want) and not result.stalled:
                     exact += 1
                 elif first_bad is None:
                     first_bad = dead
+                gaps.append(max(result.servo_gaps.values()))
+                if args.power_up:
+                    before.append(result.period_stats()[0])
+                    continue
                 before += periods(result, dead, 1, at - 1)
                 after += periods(result, dead, at + 4, T - 1)
                 worst = max([worst, *periods(result, dead, at - 1, at + 4)])
-                gaps.append(max(result.servo_gaps.values()))
             wall = time.perf_counter() - start
+            if args.power_up:
+                print(f"{model:9} dead from power-up: {exact}/{len(modules)} exact over {T} "
+                      f"transitions; mean period {min(before):.4f}-{max(before):.4f} s; longest "
+                      f"servo gap {max(gaps) * 1000:.1f} ms; first mismatch: "
+                      f"{first_bad or 'none'}; {wall:.0f} s", flush=True)  # fmt: skip
+                continue
             print(f"{model:9} dying at {at}: {exact}/{len(modules)} exact over {T} transitions; "
                   f"period before {np.mean(before):.4f} s, after the switch-over "
                   f"{np.mean(after):.4f} s (transitions {min(after):.4f}-{max(after):.4f}), "
