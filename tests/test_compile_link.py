@@ -38,19 +38,7 @@ def test_frame_vectors() -> None:
 def test_topology_vectors() -> None:
     data = json.loads((VECTORS / "link_topology.json").read_text())
     for model, wires in data["models"].items():
-        got = [
-            {
-                "master": str(lk.master),
-                "master_pin": lk.master_pin,
-                "slave": str(lk.slave),
-                "slave_pin": lk.slave_pin,
-                "colour": lk.colour,
-                "master_sends": lk.master_payload,
-                "slave_sends": lk.slave_payload,
-                "bypass": lk.bypass,
-            }
-            for lk in links(model, data["legs"], data["modules"])
-        ]
+        got = [lk.to_json() for lk in links(model, data["legs"], data["modules"])]
         assert got == wires, model
 
 

@@ -55,6 +55,19 @@ class Link:
     def pin(self, mid: ModuleId) -> int:
         return self.master_pin if mid == self.master else self.slave_pin
 
+    def to_json(self) -> dict[str, object]:
+        """The wire as in protocol/vectors/link_topology.json."""
+        return {
+            "master": str(self.master),
+            "master_pin": self.master_pin,
+            "slave": str(self.slave),
+            "slave_pin": self.slave_pin,
+            "colour": self.colour,
+            "master_sends": self.master_payload,
+            "slave_sends": self.slave_payload,
+            "bypass": self.bypass,
+        }
+
 
 def _role(model: str, legs: int, modules: int, me: ModuleId, other: ModuleId) -> str:
     """The port name at ``me`` for the wire to ``other``."""

@@ -135,22 +135,7 @@ def topology() -> dict[str, object]:
         "spec": "protocol/link.md",
         "legs": 5,
         "modules": 6,
-        "models": {
-            model: [
-                {
-                    "master": str(lk.master),
-                    "master_pin": lk.master_pin,
-                    "slave": str(lk.slave),
-                    "slave_pin": lk.slave_pin,
-                    "colour": lk.colour,
-                    "master_sends": lk.master_payload,
-                    "slave_sends": lk.slave_payload,
-                    "bypass": lk.bypass,
-                }
-                for lk in links(model, 5, 6)
-            ]
-            for model in MODELS
-        },
+        "models": {model: [lk.to_json() for lk in links(model, 5, 6)] for model in MODELS},
     }
 
 
