@@ -84,16 +84,18 @@ class SingleFaults:
         }
 
 
-def single_failures(controller: Controller, evaluate: Evaluate, transitions: int) -> SingleFaults:
-    """Fail each module alone (n·m runs) and compute M_D for each."""
+def single_failures(
+    controller: Controller, evaluate: Evaluate, transitions: int, baseline: float | None = None
+) -> SingleFaults:
+    """Fail each module alone (n·m runs) and compute M_D for each (``baseline``: the healthy
+    distance, when the caller has it already)."""
     modules = all_modules(controller.legs, controller.modules)
-    sequences = [controller.states(transitions)]
-    sequences += [controller.states(transitions, failed=[mid]) for mid in modules]
-    distances = evaluate(sequences)
-    baseline = distances[0]
+    distances = evaluate([controller.states(transitions, failed=[mid]) for mid in modules])
+    if baseline is None:
+        baseline = evaluate([controller.states(transitions)])[0]
     runs = tuple(
         FaultRun((mid,), d, mobility(d, baseline))
-        for mid, d in zip(modules, distances[1:], strict=True)
+        for mid, d in zip(modules, distances, strict=True)
     )
     return SingleFaults(baseline, runs, controller.legs, controller.modules)
 

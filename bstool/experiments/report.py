@@ -73,6 +73,7 @@ def build_report(
     from bstool.experiments import plots
     from bstool.sim.batch import BatchEvaluator
     from bstool.sim.plot import plot_paths
+    from bstool.sim.simulator import SimResult
 
     entries = find_entries(inputs)
     if not entries:
@@ -94,9 +95,12 @@ def build_report(
                 plain, reinit = ev.evaluate(
                     [c.states(extrapolate), reinit_states(c, extrapolate, transitions)]
                 )
-                base = ev.evaluate([c.states(transitions)])[0]
+                if extrapolate >= transitions:  # the same states, so the same first T steps
+                    base = SimResult(plain.path[: transitions + 1])
+                else:
+                    base = ev.evaluate([c.states(transitions)])[0]
                 say(f"{e.name}: {c.legs * c.modules} single failures")
-                f = single_failures(c, evaluate, transitions)
+                f = single_failures(c, evaluate, transitions, base.distance)
                 say(f"{e.name}: leg rotations and perturbed starts")
                 spread = rotation_spread(c, evaluate, transitions)
                 perturbed = perturbation_spread(c, e.loaded.spec, transitions, samples=3)
