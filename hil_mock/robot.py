@@ -201,6 +201,32 @@ def _ram_reader(spec: Any) -> Callable[[Stamp], int]:
     raise InputError(f"unknown RAM variable kind {kind!r} in the build's ram_map")
 
 
+def _wires(
+    build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]
+) -> dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]]:
+    """(module, pin) -> the (module, pin) ends it is wired to, without the ``cut`` wires."""
+    ends = [
+        (parse_module(w["master"]), int(w["master_pin"]), parse_module(w["slave"]),
+         int(w["slave_pin"]))
+        for w in build.manifest["links"]
+    ]  # fmt: skip
+    pairs = list(cut)
+    cuts = {frozenset(c) for c in pairs}
+    wired = {frozenset((a, b)) for a, _, b, _ in ends}
+    for a, b in pairs:
+        if frozenset((a, b)) not in wired:
+            raise InputError(
+                f"cannot cut {a}-{b}: no wire joins these modules in this build",
+                hint="WIRING.md lists the wires",
+            )
+    wires: dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]] = {}
+    for a, pin_a, b, pin_b in ends:
+        if frozenset((a, b)) not in cuts:
+            wires.setdefault((a, pin_a), []).append((b, pin_b))
+            wires.setdefault((b, pin_b), []).append((a, pin_a))
+    return wires
+
+
 class RobotTwin:
     """30 virtual modules (or n·m) wired by the build, with the MuJoCo robot as their body.
 
@@ -251,22 +277,7 @@ class RobotTwin:
         self.died: dict[ModuleId, int] = {}  # module -> virtual ns when its stamp stopped
         self._killed = False
         self._nn = str(build.manifest.get("controller", {}).get("model", "")).startswith("nn")
-        cuts = {frozenset(c) for c in cut}
-        wired = {frozenset((parse_module(w["master"]), parse_module(w["slave"])))
-                 for w in build.manifest["links"]}  # fmt: skip
-        for c in cuts - wired:
-            a, b = sorted(c) if len(c) == 2 else (*c, *c)
-            raise InputError(
-                f"cannot cut {a}-{b}: no wire joins these modules in this build",
-                hint="WIRING.md lists the wires",
-            )
-        self.wires: dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]] = {}
-        for w in build.manifest["links"]:
-            a, b = parse_module(w["master"]), parse_module(w["slave"])
-            if frozenset((a, b)) in cuts:
-                continue
-            self.wires.setdefault((a, int(w["master_pin"])), []).append((b, int(w["slave_pin"])))
-            self.wires.setdefault((b, int(w["slave_pin"])), []).append((a, int(w["master_pin"])))
+        self.wires = _wires(build, cut)
         self.stamps: dict[ModuleId, Stamp] = {}
         self.records: dict[ModuleId, ModuleRecord] = {m: ModuleRecord() for m in self.order}
         self.servos: dict[ModuleId, ServoTrack] = {}
