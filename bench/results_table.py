@@ -50,7 +50,7 @@ def fmt(values: list[float], scale: float = 1.0, digits: int = 1) -> str:
 
 
 def per_run(entries: list[dict[str, Any]]) -> str:
-    end = entries[0]["extrapolation"]["plain"].__len__() - 1
+    end = len(entries[0]["extrapolation"]["plain"]) - 1
     head = (
         f"| run | model | d_30 (cm) | keep ≥80 % | keep 100 % | mean M_D (%) | peak at | "
         f"d_{end} plain (cm) | d_{end} re-init (cm) | max dev (cm) | sway (cm) | rot. spread |"
