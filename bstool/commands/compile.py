@@ -36,7 +36,7 @@ import click
     metavar="L.M",
     help="Compile only this module (leg.module, 0 = lead); repeatable.",
 )
-@click.option("--quiet", is_flag=True, help="Print nothing on success.")
+@click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 def command(
     controller: str,
     out_dir: str,
