@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -143,9 +144,15 @@ def test_default_servo_covers_the_range() -> None:
 
 
 def test_templates_dir_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    assert (templates_dir() / "ca_main.bsx.j2").is_file()
+    packaged = templates_dir()
+    assert (packaged / "ca_main.bsx.j2").is_file()
+    assert packaged.parent.name == "templates" or packaged.parts[-2:] == ("templates", "pbasic")
     monkeypatch.setenv("BSTOOL_TEMPLATES", str(tmp_path))
-    assert templates_dir() != tmp_path  # falls back when the folder holds no templates
+    with pytest.raises(BuildError, match="holds no PBASIC templates"):
+        templates_dir()  # an override that holds no templates is a mistake, said at once
+    shutil.copytree(packaged, tmp_path / "pbasic")
+    monkeypatch.setenv("BSTOOL_TEMPLATES", str(tmp_path / "pbasic"))
+    assert templates_dir() == tmp_path / "pbasic"
 
 
 def test_missing_controller(tmp_path: Path) -> None:

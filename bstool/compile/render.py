@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from importlib import resources
 from collections.abc import Iterable
 from functools import lru_cache
 from pathlib import Path
@@ -18,18 +19,29 @@ TEMPLATES = {"ca": ("ca_main.bsx.j2", "ca_rules.bsx.j2"), "nn": ("nn_main.bsx.j2
 
 
 def templates_dir() -> Path:
-    """Where the PBASIC templates are: ``$BSTOOL_TEMPLATES``, package data, or the source tree."""
-    here = Path(__file__).resolve().parent.parent  # the bstool package
-    candidates = []
-    if os.environ.get("BSTOOL_TEMPLATES"):
-        candidates.append(Path(os.environ["BSTOOL_TEMPLATES"]))
-    candidates += [here / "data" / "templates" / "pbasic", here.parent / "templates" / "pbasic"]
-    for path in candidates:
-        if (path / TEMPLATES["ca"][0]).is_file():
-            return path
+    """Where the PBASIC templates are: ``$BSTOOL_TEMPLATES`` if set, else the package data.
+
+    The templates live in templates/pbasic/ at the top of the repository; pyproject.toml maps
+    that folder into the installed package as ``bstool.templates`` (wheel and editable alike).
+    """
+    override = os.environ.get("BSTOOL_TEMPLATES")
+    if override:
+        folder = Path(override)
+        if not (folder / TEMPLATES["ca"][0]).is_file():
+            raise BuildError(
+                f"BSTOOL_TEMPLATES={override} holds no PBASIC templates ({TEMPLATES['ca'][0]})",
+                hint="point it at a templates/pbasic folder, or unset it to use the installed ones",
+            )
+        return folder
+    try:
+        packaged = resources.files("bstool.templates") / "pbasic"
+    except ModuleNotFoundError:
+        packaged = None
+    if packaged is not None and (packaged / TEMPLATES["ca"][0]).is_file():
+        return Path(str(packaged))
     raise BuildError(
-        "PBASIC templates not found (looked in " + ", ".join(str(p) for p in candidates) + ")",
-        hint="reinstall bstool, or set BSTOOL_TEMPLATES to the templates/pbasic folder",
+        "PBASIC templates not found in the installed package (bstool.templates/pbasic)",
+        hint="reinstall bstool (pip install .), or set BSTOOL_TEMPLATES to a templates/pbasic folder",
     )
 
 
