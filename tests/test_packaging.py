@@ -1,4 +1,4 @@
-"""The wheel's package list (pyproject.toml) matches the tree, and the templates are package data."""
+"""The wheel's package list (pyproject.toml) matches the tree; the templates are package data."""
 
 from __future__ import annotations
 

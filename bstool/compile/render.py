@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import os
-from importlib import resources
 from collections.abc import Iterable
 from functools import lru_cache
+from importlib import resources
 from pathlib import Path
 
 import jinja2
@@ -41,7 +41,7 @@ def templates_dir() -> Path:
         return Path(str(packaged))
     raise BuildError(
         "PBASIC templates not found in the installed package (bstool.templates/pbasic)",
-        hint="reinstall bstool (pip install .), or set BSTOOL_TEMPLATES to a templates/pbasic folder",
+        hint="reinstall bstool (pip install .), or set BSTOOL_TEMPLATES to templates/pbasic",
     )
 
 
