@@ -18,6 +18,7 @@ from bstool.compile import describe
 from bstool.compile.calibration import DEFAULT, Calibration, load_calibration
 from bstool.compile.plan import ModulePlan, build_plans, estimates, exchange_ms
 from bstool.compile.render import render_module
+from bstool.compile.wiring import wiring as wiring_md
 from bstool.controllers import Controller, controller_hash, load_controller
 from bstool.errors import BstoolError, BuildError, InputError, SourceError
 from bstool.moduleid import ModuleId, parse_module
@@ -151,7 +152,7 @@ def compile_loaded(
     manifest = describe.manifest(
         ctrl, source_name, full_hash, period, results, tokenizer is not None
     )
-    wiring = describe.wiring(ctrl, full_hash, results, manifest)
+    wiring = wiring_md(ctrl, full_hash, results)
     _write_atomically(out, results, manifest, wiring, ctrl.to_json())
     return BuildResult(out, full_hash, results, tokenizer is not None, manifest)
 

@@ -1,0 +1,103 @@
+"""WIRING.md: everything a person with 30 modules on the bench needs to build, calibrate, flash
+and start the robot compiled into this build (rendered from bstool/data/wiring.md.j2)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import jinja2
+
+from bstool.compile.topology import PORTS, SERVO_PIN, Link, links, pin_role
+from bstool.controllers import NN_MODELS
+from bstool.moduleid import ModuleId
+from bstool.robot import RobotSpec
+
+if TYPE_CHECKING:
+    from bstool.compile.build import ModuleResult
+    from bstool.controllers import Controller
+
+PAD_PIN = 13
+BAUD_DEBUG = 240  # BS2sx baudmode of 9600 baud, true polarity (bs2sx.md: SERIN/SEROUT)
+
+
+@dataclass(frozen=True)
+class Wire:
+    number: int
+    master: str
+    master_pin: int
+    slave: str
+    slave_pin: int
+    colour: int
+    bypass: bool
+
+
+def _port_text(model: str) -> dict[str, str]:
+    """What each link port joins, said for this model (NN legs are chains, CA legs rings)."""
+    ring = model not in NN_MODELS
+    return {
+        "prev": "previous module along the leg (towards the disc)"
+        + ("; the lead's P0 goes to the tip of its own leg (the leg is a ring)" if ring else ""),
+        "next": "next module along the leg (towards the tip)"
+        + ("; the tip's P1 goes to the lead of its own leg" if ring else ""),
+        "lead_left": "the lead of leg i-1 (leads only)",
+        "lead_right": "the lead of leg i+1 (leads only)",
+        "bypass_prev": "the module two before along the leg (bypass around a dead j-1)",
+        "bypass_next": "the module two after along the leg (bypass around a dead j+1)",
+    }
+
+
+def _flash_slots(res: ModuleResult) -> list[int]:
+    """Rule slots first, slot 0 last: slot 0 starts running as soon as it is written."""
+    return [*(s.slot for s in reversed(res.slots[1:])), 0]
+
+
+def _environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.PackageLoader("bstool", "data"),
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+        autoescape=False,
+    )
+
+
+def wiring(ctrl: Controller, full_hash: str, results: list[ModuleResult]) -> str:
+    """The text of WIRING.md for a build of ``ctrl`` holding the modules of ``results``."""
+    spec = RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k)
+    wires: list[Link] = links(ctrl.model, ctrl.legs, ctrl.modules)
+    roles = {
+        pin_role(ctrl.model, ctrl.legs, ctrl.modules, r.plan.mid, ll.peer)
+        for r in results
+        for ll in r.plan.links
+    }
+    text = _port_text(ctrl.model)
+    ports = [(PORTS[k], text[k]) for k in text if k in roles]
+    ordered = sorted(results, key=lambda r: r.plan.mid)
+    first = ordered[0].plan.mid if ordered else ModuleId(0, 0)
+    context = {
+        "hash8": full_hash[:8],
+        "model": ctrl.model,
+        "nn": ctrl.model in NN_MODELS,
+        "legs": ctrl.legs,
+        "modules": ctrl.modules,
+        "last_leg": ctrl.legs - 1,
+        "last_module": ctrl.modules - 1,
+        "angle_step": 360 // ctrl.legs if 360 % ctrl.legs == 0 else round(360 / ctrl.legs, 1),
+        "axes": [(j, spec.axis_of(j)) for j in range(ctrl.modules)],
+        "servo_pin": SERVO_PIN,
+        "pad_pin": PAD_PIN,
+        "baud_debug": BAUD_DEBUG,
+        "ports": ports,
+        "bypass": "bypass_next" in roles,
+        "wires": [
+            Wire(n, w.master.label, w.master_pin, w.slave.label, w.slave_pin, w.colour, w.bypass)
+            for n, w in enumerate(wires, start=1)
+        ],
+        "roll_s": max((r.plan.roll_ms for r in results), default=0) / 1000,
+        "order": [(r.plan.mid.label, str(r.plan.mid), _flash_slots(r)) for r in ordered],
+        "first": str(first),
+        "first_label": first.label,
+    }
+    return _environment().get_template("wiring.md.j2").render(**context)
