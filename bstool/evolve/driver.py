@@ -259,3 +259,68 @@ def execute(
         if close is not None:
             close()
     return result_of(plan)
+
+
+def evolve(
+    model: str,
+    *,
+    pop: int | None = None,
+    gens: int | None = None,
+    pc: float | None = None,
+    pm: float | None = None,
+    transitions: int | None = None,
+    coevol_gens: int | None = None,
+    seed: int | None = None,
+    robust: str | None = None,
+    coevolve_faults: bool = False,
+    parasites: int | None = None,
+    parasite_k: Any = None,
+    fitness: str = "physics",
+    workers: int | None = None,
+    cluster: Any = None,
+    out: str | os.PathLike[str] | None = None,
+    force: bool = False,
+    on_generation: Callable[[Generation], None] | None = None,
+) -> EvolveResult:
+    """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
+
+    ``None`` means the default (docs/evolution.md; a random seed is drawn and recorded).
+    ``out`` is the run folder (best.json, history.csv, checkpoint after every generation); with
+    ``out=None`` nothing is written and the run cannot be resumed. ``on_generation`` gets a
+    :class:`Generation` after each one. Ctrl-C (or a ``KeyboardInterrupt`` raised by the
+    callback) raises :class:`EvolveInterrupted` once the last finished generation is saved.
+    Bad settings or folders raise :class:`~bstool.errors.InputError` before any work.
+    """
+    params = opt.ga_params(
+        model,
+        pop=pop,
+        gens=gens,
+        pc=pc,
+        pm=pm,
+        transitions=transitions,
+        coevol_gens=coevol_gens,
+        seed=seed,
+        robust=robust,
+        coevolve_faults=coevolve_faults,
+        parasites=parasites,
+        parasite_k=parasite_k,
+    )
+    opt.check_workers(workers)
+    plan = plan_new(model, params, fitness=fitness, out=out, force=force)
+    return execute(plan, workers=workers, cluster=cluster, on_generation=on_generation)
+
+
+def resume(
+    out: str | os.PathLike[str],
+    *,
+    gens: int | None = None,
+    workers: int | None = None,
+    cluster: Any = None,
+    on_generation: Callable[[Generation], None] | None = None,
+) -> EvolveResult:
+    """Continue the run in folder ``out`` from its checkpoint (``gens`` may extend it); it
+    reaches the same files as a run never interrupted. Raises ``InputError`` when ``out``
+    holds no run or ``gens`` is below what is done."""
+    opt.check_workers(workers)
+    plan = plan_resume(out, {"gens": gens})
+    return execute(plan, workers=workers, cluster=cluster, on_generation=on_generation)
