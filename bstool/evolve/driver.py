@@ -91,7 +91,8 @@ class EvolveInterrupted(KeyboardInterrupt):
 
     def __init__(self, result: EvolveResult) -> None:
         self.result = result
-        done = f"after {result.stats.get('step', 0)} of {result.stats.get('total_steps', 0)}"
+        step = result.stats.get("saved_step" if result.path else "step", 0)
+        done = f"after {step} of {result.stats.get('total_steps', 0)}"
         if result.path is None:
             msg = f"interrupted {done} generations; nothing saved (out=None)"
             self.resume_hint = "give out=DIR to make a run resumable"
@@ -110,6 +111,7 @@ class Plan:
     directory: Path | None
     fresh: bool  # a new run: save once before the first generation
     replace: bool = False  # the folder exists with other content (--force): swap it whole
+    saved_step: int | None = None  # the step the folder's checkpoint holds (None: not yet)
 
     @property
     def fitness(self) -> str:
@@ -164,7 +166,7 @@ def plan_resume(directory: str | os.PathLike[str], given: Mapping[str, Any]) -> 
     for name in (BEST, HISTORY, CHECKPOINT):
         outputs.clean_stale(d / name)
     outputs.clean_stale(d)
-    return Plan(state, extra, d, False)
+    return Plan(state, extra, d, False, saved_step=state.step)
 
 
 def factory_for(kind: str, problem: Problem, workers: int) -> EvaluatorFactory:
@@ -180,7 +182,8 @@ def result_of(plan: Plan) -> EvolveResult:
     worst = None
     if st.parasites is not None:
         worst = tuple(parasite_cells(st.parasites[0], st.problem.modules))
-    stats = {**st.stats(), "step": st.step, "total_steps": st.total_steps}
+    saved = st.step if plan.saved_step is None else plan.saved_step
+    stats = {**st.stats(), "step": st.step, "total_steps": st.total_steps, "saved_step": saved}
     return EvolveResult(
         model=st.problem.model,
         controller=st.best_controller(),
@@ -224,6 +227,7 @@ def execute(
             plan.replace = False
         else:
             save_outputs(st, plan.directory, plan.extra)
+        plan.saved_step = st.step
 
     def after_step(st: RunState, row: HistoryRow) -> None:
         save(st)
