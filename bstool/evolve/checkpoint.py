@@ -123,6 +123,20 @@ def save_checkpoint(state: RunState, path: Path, extra: dict[str, Any]) -> None:
         np.savez(fh, **arrays)  # type: ignore[arg-type]
 
 
+def is_run(directory: str | os.PathLike[str]) -> bool:
+    """Whether ``directory`` holds a run of ``bstool evolve``: positively, its checkpoint opens
+    and declares this format (a stray ``checkpoint.npz`` of another tool does not count)."""
+    path = Path(directory) / CHECKPOINT
+    try:
+        if not path.is_file():
+            return False
+        with np.load(path, allow_pickle=False) as npz:
+            meta = json.loads(str(npz["meta"]))
+    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile):
+        return False
+    return isinstance(meta, dict) and meta.get("format") == FORMAT
+
+
 def load_checkpoint(out: str | os.PathLike[str]) -> tuple[RunState, dict[str, Any]]:
     """The saved state of the run in directory ``out`` and its ``extra`` settings."""
     path = Path(out) / CHECKPOINT

@@ -1,0 +1,330 @@
+"""Running an evolution from Python or the CLI: check the run folder, build the evaluator,
+save after every generation, report progress to a callback, and stop resumably on Ctrl-C.
+
+No printing, no click, no ``sys.exit``: ``bstool evolve`` draws its progress bar and summary
+from the same :class:`Generation` and :class:`EvolveResult` a notebook gets.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bstool import outputs
+from bstool.controllers import Controller
+from bstool.cpus import usable_cpus
+from bstool.errors import InputError
+from bstool.evolve import options as opt
+from bstool.evolve.checkpoint import (
+    BEST,
+    CHECKPOINT,
+    HISTORY,
+    is_run,
+    load_checkpoint,
+    save_outputs,
+)
+from bstool.evolve.engine import GAParams, HistoryRow, RunState, new_run, run
+from bstool.evolve.fitness import Evaluator, EvaluatorFactory, PhysicsFitness, ToyFitness
+from bstool.evolve.problem import Problem
+
+#: what a fitness value is, per evaluator kind (the value itself: metres, or toy units)
+UNITS = {"physics": "m", "toy": "toy units"}
+
+
+def fitness_text(value: float, kind: str) -> str:
+    """A fitness for people: physics in cm (eq. 6 distance, as the plots), toy unit-less."""
+    if kind == "physics":
+        return f"{value * 100:.2f} cm"
+    return f"{value:.4g} (toy units)"
+
+
+@dataclass(frozen=True)
+class Generation:
+    """What ``on_generation`` receives after every evaluated generation (a history row)."""
+
+    population: str  # "main"; "leg"/"control" (ca2ddiff); "host" (--coevolve-faults)
+    generation: int  # index within that population
+    best: float  # best fitness of the generation (metres with physics)
+    mean: float
+    paid: int  # simulations this generation cost (cache misses)
+    evaluations: int  # simulations paid by the run so far
+    step: int  # generations evaluated so far, all populations
+    total_steps: int
+    best_so_far: float  # the fitness of best.json now
+    fitness: str  # "physics" | "toy"
+    parasite: HistoryRow | None = None  # --coevolve-faults: the parasites' row
+
+
+@dataclass(frozen=True)
+class EvolveResult:
+    """The outcome of :func:`evolve` / :func:`resume` (also of an interrupted run)."""
+
+    model: str
+    controller: Controller | None  # the best so far (None before the first generation)
+    fitness: float  # its fitness (metres with physics; see ``fitness_kind``)
+    fitness_kind: str
+    history: tuple[HistoryRow, ...]
+    params: GAParams
+    path: Path | None  # the run folder (None: out=None, nothing written)
+    completed: bool
+    stats: dict[str, int] = field(default_factory=dict)
+    worst_parasite: tuple[tuple[int, int], ...] | None = None  # --coevolve-faults: L.M cells
+
+    @property
+    def best_json(self) -> Path | None:
+        return None if self.path is None else self.path / BEST
+
+    @property
+    def fitness_text(self) -> str:
+        return fitness_text(self.fitness, self.fitness_kind)
+
+
+class EvolveInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a run: everything up to the last finished generation is saved.
+
+    A :class:`KeyboardInterrupt`, so a notebook cell or script stops as usual; ``result``
+    holds the partial :class:`EvolveResult`, ``resume_hint`` how to continue.
+    """
+
+    def __init__(self, result: EvolveResult) -> None:
+        self.result = result
+        step = result.stats.get("saved_step" if result.path else "step", 0)
+        done = f"after {step} of {result.stats.get('total_steps', 0)}"
+        if result.path is None:
+            msg = f"interrupted {done} generations; nothing saved (out=None)"
+            self.resume_hint = "give out=DIR to make a run resumable"
+        else:
+            msg = f"Interrupted {done} generations; everything so far is saved in {result.path}."
+            self.resume_hint = f"bstool evolve --resume {result.path}"
+        super().__init__(msg)
+
+
+@dataclass
+class Plan:
+    """A checked run, not started: its state, settings and where it goes."""
+
+    state: RunState
+    extra: dict[str, Any]  # saved with the checkpoint: {"fitness": kind}
+    directory: Path | None
+    fresh: bool  # a new run: save once before the first generation
+    replace: bool = False  # the folder exists with other content (--force): swap it whole
+    saved_step: int | None = None  # the step the folder's checkpoint holds (None: not yet)
+
+    @property
+    def fitness(self) -> str:
+        return str(self.extra.get("fitness", "physics"))
+
+
+def check_out(out: str | os.PathLike[str], *, force: bool = False) -> tuple[Path, bool]:
+    """Check a new run's folder before any work; (path, must replace existing content).
+
+    A non-empty folder is refused unless ``force``: with the hint to resume when it is an
+    evolve run (its checkpoint's format says so), else to pick another folder. ``force``
+    never replaces the current folder or one containing it.
+    """
+    p = Path(out)
+    if not force and is_run(p):
+        raise InputError(
+            f"{p} already holds a run of bstool evolve",
+            hint=f"continue it with --resume {p}, choose another --out, "
+            "or add --force to start a new run in its place",
+        )
+    if force:
+        here = Path.cwd().resolve()
+        if p.resolve() == here or p.resolve() in here.parents:
+            raise InputError(
+                f"--force would replace {p}: it is the current folder or contains it",
+                hint="give a run folder inside the current one",
+            )
+    outputs.check_dir(p, "run folder", force=force, ours=is_run)
+    return p, p.is_dir() and any(p.iterdir())
+
+
+def plan_new(
+    model: str,
+    params: GAParams,
+    *,
+    fitness: str = "physics",
+    out: str | os.PathLike[str] | None = None,
+    force: bool = False,
+) -> Plan:
+    kind = opt.check_fitness(fitness)
+    directory, replace = (None, False) if out is None else check_out(out, force=force)
+    problem = Problem(opt.check_model(model), transitions=params.transitions)
+    return Plan(new_run(problem, params), {"fitness": kind}, directory, True, replace)
+
+
+def plan_resume(directory: str | os.PathLike[str], given: Mapping[str, Any]) -> Plan:
+    """Load the run in ``directory``, check ``given`` against it, remove what a killed writer
+    left there (temporaries of best.json, history.csv, the checkpoint, a swapped folder)."""
+    state, extra = load_checkpoint(directory)
+    opt.check_resume(state, extra, directory, given)
+    d = Path(directory)
+    for name in (BEST, HISTORY, CHECKPOINT):
+        outputs.clean_stale(d / name)
+    outputs.clean_stale(d)
+    return Plan(state, extra, d, False, saved_step=state.step)
+
+
+def factory_for(kind: str, problem: Problem, workers: int) -> EvaluatorFactory:
+    if kind == "toy":
+        return ToyFitness()
+    return PhysicsFitness(legs=problem.legs, modules=problem.modules, workers=workers)
+
+
+def result_of(plan: Plan) -> EvolveResult:
+    from bstool.evolve.scoring import parasite_cells
+
+    st = plan.state
+    worst = None
+    if st.parasites is not None:
+        worst = tuple(parasite_cells(st.parasites[0], st.problem.modules))
+    saved = st.step if plan.saved_step is None else plan.saved_step
+    stats = {**st.stats(), "step": st.step, "total_steps": st.total_steps, "saved_step": saved}
+    return EvolveResult(
+        model=st.problem.model,
+        controller=st.best_controller(),
+        fitness=st.best_fitness if st.best_row is not None else float("nan"),
+        fitness_kind=plan.fitness,
+        history=tuple(st.history),
+        params=st.params,
+        path=plan.directory,
+        completed=st.done,
+        stats=stats,
+        worst_parasite=worst,
+    )
+
+
+def execute(
+    plan: Plan,
+    *,
+    workers: int | None = None,
+    cluster: Any = None,
+    on_generation: Callable[[Generation], None] | None = None,
+) -> EvolveResult:
+    """Run ``plan`` to its end. Physics uses ``workers`` threads (default: the usable CPUs;
+    1 per Dask thread with ``cluster``, an address or a ``dask.distributed.Client``)."""
+    state = plan.state
+    threads = opt.check_workers(workers) or (1 if cluster else usable_cpus())
+    factory = factory_for(plan.fitness, state.problem, threads)
+    evaluator: Evaluator
+    if cluster:
+        from bstool.evolve.cluster import DaskEvaluator
+
+        evaluator = DaskEvaluator(cluster, factory)
+    else:
+        evaluator = factory.build()
+
+    def save(st: RunState) -> None:
+        if plan.directory is None:
+            return
+        if plan.replace:
+            with outputs.staged_dir(plan.directory) as tmp:
+                save_outputs(st, tmp, plan.extra)
+            plan.replace = False
+        else:
+            save_outputs(st, plan.directory, plan.extra)
+        plan.saved_step = st.step
+
+    def after_step(st: RunState, row: HistoryRow) -> None:
+        save(st)
+        if on_generation is not None:
+            parasite = st.history[-1] if st.history[-1].population == "parasite" else None
+            on_generation(
+                Generation(
+                    row.population,
+                    row.generation,
+                    row.best,
+                    row.mean,
+                    row.evaluations,
+                    st.cache.evaluations,
+                    st.step,
+                    st.total_steps,
+                    st.best_fitness,
+                    plan.fitness,
+                    parasite,
+                )
+            )
+
+    try:
+        if plan.fresh:
+            save(state)  # the run folder (and a checkpoint) exists from the start
+            plan.fresh = False
+        run(state, evaluator, after_step)
+    except KeyboardInterrupt as exc:
+        if isinstance(exc, EvolveInterrupted):
+            raise
+        raise EvolveInterrupted(result_of(plan)) from None
+    finally:
+        close = getattr(evaluator, "close", None)
+        if close is not None:
+            close()
+    return result_of(plan)
+
+
+def evolve(
+    model: str,
+    *,
+    pop: int | None = None,
+    gens: int | None = None,
+    pc: float | None = None,
+    pm: float | None = None,
+    transitions: int | None = None,
+    coevol_gens: int | None = None,
+    seed: int | None = None,
+    robust: str | None = None,
+    coevolve_faults: bool = False,
+    parasites: int | None = None,
+    parasite_k: Any = None,
+    fitness: str = "physics",
+    workers: int | None = None,
+    cluster: Any = None,
+    out: str | os.PathLike[str] | None = None,
+    force: bool = False,
+    on_generation: Callable[[Generation], None] | None = None,
+) -> EvolveResult:
+    """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
+
+    ``None`` means the default (docs/evolution.md; a random seed is drawn and recorded).
+    ``out`` is the run folder (best.json, history.csv, checkpoint after every generation); with
+    ``out=None`` nothing is written and the run cannot be resumed. ``on_generation`` gets a
+    :class:`Generation` after each one. Ctrl-C (or a ``KeyboardInterrupt`` raised by the
+    callback) raises :class:`EvolveInterrupted` once the last finished generation is saved.
+    Bad settings or folders raise :class:`~bstool.errors.InputError` before any work.
+    """
+    params = opt.ga_params(
+        model,
+        pop=pop,
+        gens=gens,
+        pc=pc,
+        pm=pm,
+        transitions=transitions,
+        coevol_gens=coevol_gens,
+        seed=seed,
+        robust=robust,
+        coevolve_faults=coevolve_faults,
+        parasites=parasites,
+        parasite_k=parasite_k,
+    )
+    opt.check_workers(workers)
+    plan = plan_new(model, params, fitness=fitness, out=out, force=force)
+    return execute(plan, workers=workers, cluster=cluster, on_generation=on_generation)
+
+
+def resume(
+    out: str | os.PathLike[str],
+    *,
+    gens: int | None = None,
+    workers: int | None = None,
+    cluster: Any = None,
+    on_generation: Callable[[Generation], None] | None = None,
+) -> EvolveResult:
+    """Continue the run in folder ``out`` from its checkpoint (``gens`` may extend it); it
+    reaches the same files as a run never interrupted. Raises ``InputError`` when ``out``
+    holds no run or ``gens`` is below what is done."""
+    opt.check_workers(workers)
+    plan = plan_resume(out, {"gens": gens})
+    return execute(plan, workers=workers, cluster=cluster, on_generation=on_generation)

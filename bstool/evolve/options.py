@@ -1,0 +1,224 @@
+"""The GA's settings from user options: defaults in one place, checks before any work, and what
+a resumed run may change. Used by ``bstool evolve`` and by :func:`bstool.api.evolve` alike, so
+both refuse the same things with the same :class:`~bstool.errors.InputError`.
+
+Messages name the command-line flags (``--parasite-k``); each is the keyword of the same name in
+the Python API (``parasite_k=``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import secrets
+from collections.abc import Mapping
+from typing import Any
+
+from bstool.controllers.reference import MODELS
+from bstool.errors import InputError
+from bstool.evolve.engine import GAParams, RunState, default_gens, default_pm
+from bstool.evolve.problem import Problem
+from bstool.evolve.scoring import ROBUST_MODES, parse_k
+
+#: physics (MuJoCo, eq. 6 distance in metres) or toy (a cheap stand-in, not a distance)
+FITNESS_KINDS = ("physics", "toy")
+#: --coevolve-faults' parasite population: Q + 1 = 5 runs per host, the budget of --robust, n = 5
+DEFAULT_PARASITES = 4
+
+_CELLS = Problem("ca1d").legs * Problem("ca1d").modules  # the robot bstool evolve builds
+
+#: the settings a resumed run keeps (only --gens may be raised)
+FIXED_ON_RESUME = (
+    "model",
+    "pop",
+    "pc",
+    "pm",
+    "transitions",
+    "coevol_gens",
+    "seed",
+    "fitness",
+    "robust",
+    "coevolve_faults",
+    "parasites",
+    "parasite_k",
+)
+
+
+def default(name: str, model: str | None = None) -> Any:
+    """The default of GA option ``name`` (GAParams' field; gens and pm depend on the model)."""
+    if name == "gens" and model is not None:
+        return default_gens(model)
+    if name == "pm" and model is not None:
+        return default_pm(model)
+    if name == "parasites":
+        return DEFAULT_PARASITES
+    if name == "fitness":
+        return FITNESS_KINDS[0]
+    fields: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(GAParams)}
+    if name == "parasite_k":
+        low, high = fields["parasite_k"]
+        return f"{low}..{high}" if low != high else str(low)
+    return fields[name]
+
+
+def default_text(name: str) -> str:
+    """The default as --help shows it (model-dependent ones per model)."""
+    if name == "gens":
+        return f"{default('gens', 'ca1d')}; ca2ddiff: {default('gens', 'ca2ddiff')} outer loops"
+    if name == "pm":
+        return f"{default('pm', 'ca1d')} CA, {default('pm', 'nnsin')} NN"
+    return str(default(name))
+
+
+def flag(name: str) -> str:
+    return "MODEL" if name == "model" else "--" + name.replace("_", "-")
+
+
+def _int(name: str, value: Any, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise InputError(f"{flag(name)} must be an integer of at least {low}, got {value!r}")
+    return value
+
+
+def _probability(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 1:
+        raise InputError(f"{flag(name)} must be a probability in 0..1, got {value!r}")
+    return float(value)
+
+
+def check_model(model: Any) -> str:
+    if model is None:
+        raise InputError("missing MODEL", hint=f"one of: {', '.join(MODELS)}")
+    if model not in MODELS:
+        raise InputError(f"unknown MODEL {model!r}", hint=f"one of: {', '.join(MODELS)}")
+    return str(model)
+
+
+def check_fitness(kind: Any) -> str:
+    if kind not in FITNESS_KINDS:
+        raise InputError(f"unknown --fitness {kind!r}", hint=f"one of: {', '.join(FITNESS_KINDS)}")
+    return str(kind)
+
+
+def parasite_range(value: Any) -> tuple[int, int]:
+    """``--parasite-k`` as "K", "A..B", an int or a (low, high) pair, within the robot."""
+    if isinstance(value, str):
+        return parse_k(value, _CELLS)
+    if isinstance(value, int) and not isinstance(value, bool):
+        return parse_k(str(value), _CELLS)
+    try:
+        low, high = (int(x) for x in value)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"--parasite-k {value!r} is not K, A..B or a (low, high) pair",
+            hint='e.g. --parasite-k 1 or --parasite-k "1..2"',
+        ) from None
+    return parse_k(f"{low}..{high}", _CELLS)
+
+
+def ga_params(
+    model: str,
+    *,
+    pop: int | None = None,
+    gens: int | None = None,
+    pc: float | None = None,
+    pm: float | None = None,
+    transitions: int | None = None,
+    coevol_gens: int | None = None,
+    seed: int | None = None,
+    robust: str | None = None,
+    coevolve_faults: bool = False,
+    parasites: int | None = None,
+    parasite_k: Any = None,
+) -> GAParams:
+    """Checked GA parameters for a new run; ``None`` means the default (a random 32-bit seed)."""
+    model = check_model(model)
+
+    def pick(name: str, value: Any) -> Any:
+        return default(name, model) if value is None else value
+
+    if not coevolve_faults:
+        for name, value in (("parasites", parasites), ("parasite_k", parasite_k)):
+            if value is not None:
+                raise InputError(
+                    f"{flag(name)} only applies with --coevolve-faults",
+                    hint=f"add --coevolve-faults, or drop {flag(name)}",
+                )
+    elif robust is not None:
+        raise InputError(
+            "--robust and --coevolve-faults do not combine",
+            hint="choose one scoring: rotations (--robust) or failures (--coevolve-faults)",
+        )
+    if robust is not None and robust not in ROBUST_MODES:
+        raise InputError(
+            f"unknown --robust mode {robust!r}", hint=f"one of: {', '.join(ROBUST_MODES)}"
+        )
+    return GAParams(
+        pop=_int("pop", pick("pop", pop), 2),
+        gens=_int("gens", pick("gens", gens), 1),
+        pc=_probability("pc", pick("pc", pc)),
+        pm=_probability("pm", pick("pm", pm)),
+        transitions=_int("transitions", pick("transitions", transitions), 1),
+        coevol_gens=_int("coevol_gens", pick("coevol_gens", coevol_gens), 1),
+        seed=secrets.randbits(32) if seed is None else _int("seed", seed, 0),
+        robust=robust,
+        parasites=_int("parasites", pick("parasites", parasites), 2) if coevolve_faults else 0,
+        parasite_k=parasite_range(pick("parasite_k", parasite_k)),
+    )
+
+
+def check_workers(workers: Any) -> int | None:
+    return None if workers is None else _int("workers", workers, 1)
+
+
+def saved_settings(state: RunState, extra: Mapping[str, Any]) -> dict[str, Any]:
+    """The settings of a saved run, keyed like the options (absent ones are None)."""
+    p = state.params
+    return {
+        **p.to_json(),
+        "model": state.problem.model,
+        "robust": p.robust,
+        "coevolve_faults": p.coevolve_faults or None,
+        "parasites": p.parasites or None,
+        "parasite_k": list(p.parasite_k) if p.coevolve_faults else None,
+        **extra,
+    }
+
+
+def generations_done(state: RunState) -> int:
+    return state.step // (state.total_steps // state.params.gens)
+
+
+def check_resume(
+    state: RunState,
+    extra: Mapping[str, Any],
+    directory: str | os.PathLike[str],
+    given: Mapping[str, Any],
+) -> None:
+    """Refuse options that differ from the saved run's; apply a raised ``gens`` to ``state``.
+
+    ``given`` holds only the options the user gave (``None`` = not given); ``parasite_k`` may
+    be given in any form :func:`parasite_range` takes.
+    """
+    saved = saved_settings(state, extra)
+    for name in FIXED_ON_RESUME:
+        value = given.get(name)
+        if value is None or value is False:
+            continue
+        if name == "parasite_k":
+            value = list(parasite_range(value))
+        before = saved.get(name)
+        if value != before:
+            raise InputError(
+                f"{flag(name)} is {value!r} but the run in {directory} was started with {before!r}"
+                if before is not None
+                else f"the run in {directory} was started without {flag(name)}",
+                hint="a resumed run keeps its settings; only --gens may be raised",
+            )
+    gens = given.get("gens")
+    if gens is not None:
+        gens = _int("gens", gens, 1)
+        done = generations_done(state)
+        if gens < done:
+            raise InputError(f"--gens {gens} is less than the {done} generations already done")
+        state.params = GAParams(**{**state.params.to_json(), "gens": gens})
