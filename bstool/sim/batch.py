@@ -9,7 +9,6 @@ because every run starts from a fully reset MjData (zero warm start).
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
@@ -18,6 +17,7 @@ from typing import Any, Literal
 import mujoco
 import numpy as np
 
+from bstool.cpus import usable_cpus
 from bstool.errors import InputError
 from bstool.robot import RobotSpec
 from bstool.sim.simulator import SimResult, Simulator
@@ -30,11 +30,8 @@ _ROLLOUT_BYTES = 64 * 2**20
 
 
 def default_workers() -> int:
-    """CPUs this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+    """CPUs this process may use (bstool.cpus, the one place worker counts come from)."""
+    return usable_cpus()
 
 
 class BatchEvaluator:
