@@ -104,7 +104,7 @@ def save_checkpoint(state: RunState, path: Path, extra: dict[str, Any]) -> None:
         "cache_hits": state.cache.hits,
         "extra": extra,
     }
-    arrays: dict[str, np.ndarray] = {
+    arrays: dict[str, Any] = {  # Any: numpy stubs type **kwargs of savez as allow_pickle
         "meta": np.array(json.dumps(meta)),
         "cache_keys": keys,
         "cache_values": values,
@@ -120,7 +120,7 @@ def save_checkpoint(state: RunState, path: Path, extra: dict[str, Any]) -> None:
     if state.parasites is not None:
         arrays["parasites"] = state.parasites.astype(np.int16)
     with fileio.atomic_open(path, "wb") as fh:
-        np.savez(fh, **arrays)  # type: ignore[arg-type]
+        np.savez(fh, **arrays)
 
 
 def is_run(directory: str | os.PathLike[str]) -> bool:

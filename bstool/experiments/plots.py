@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -118,7 +118,7 @@ def plot_fitness(
     from the file's suffix (.png, .svg, .pdf)."""
     fig = _figure(8.0, 5.0)
     ax = fig.add_subplot()
-    harm = None  # parasites (--coevolve-faults) score a fraction of distance lost: own axis
+    harm: Any = None  # parasites (--coevolve-faults) score a fraction of distance lost: own axis
     colours = [f"C{i}" for i in range(10)]
     curves = 0
     for name, rows in histories.items():
