@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bstool.compile import link
 from bstool.compile.topology import links, module_links, reads
 from bstool.controllers import CA_MODELS, MODELS, NN_MODELS
 from bstool.moduleid import ModuleId, all_modules
+from bstool.wire import link
 
 VECTORS = Path(__file__).resolve().parents[1] / "protocol" / "vectors"
 

@@ -16,10 +16,10 @@ import pytest
 
 from bstool.builtin import builtin_controller
 from bstool.cli import main
-from bstool.compile import link
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
 from bstool.robot import state_to_angle
+from bstool.wire import link
 from hil_mock.robot import RobotTwin, load_build
 
 TRANSITIONS = 32

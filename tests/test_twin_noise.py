@@ -14,8 +14,9 @@ import pytest
 
 from bstool.builtin import builtin_controller
 from bstool.cli import main
-from bstool.compile import link, timing
+from bstool.compile import timing
 from bstool.controllers import load_controller
+from bstool.wire import link
 from hil_mock.robot import RobotTwin, load_build
 
 TRANSITIONS = 30

@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 
 import serial
 
-from bstool.flash import protocol as P
 from bstool.flash.errors import (
     EchoMismatchError,
     FlashTimeoutError,
@@ -27,6 +26,7 @@ from bstool.flash.errors import (
     WrongStampError,
 )
 from bstool.flash.port import NO_MODEM_SCHEMES, scheme
+from bstool.wire import programming as P
 
 ANNOUNCEMENT = re.compile(rb"bstool L(\d+)\.M(\d+) ([0-9a-fA-F]{8})\r")
 

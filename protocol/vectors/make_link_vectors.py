@@ -11,8 +11,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from bstool.compile import link
 from bstool.compile.topology import links
+from bstool.wire import link
 
 HERE = Path(__file__).resolve().parent
 MODELS = ("ca1d", "ca2dsing", "ca2ddiff", "nnsig", "nnsin")
