@@ -55,7 +55,7 @@ def builtin_build(tmp_path_factory: pytest.TempPathFactory) -> Iterator[BuiltinB
         if key not in cache:
             out = tmp_path_factory.mktemp(f"{model}-{period}") / "build"
             more = ["--period", str(period)] if period is not None else []
-            assert main(["compile", str(builtin_controller(model)), "-o", str(out), *more]) == 0
+            assert main(["compile", str(builtin_controller(model)), "-o", str(out), "-q", *more]) == 0
             cache[key] = out
         if not fresh:
             return cache[key]

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from conftest import FakeModule, write_fake_build
+from conftest import CliRun, FakeModule, write_fake_build
 
 from bstool.buildfile import Wire
 from bstool.errors import InputError
@@ -164,3 +165,15 @@ def test_twin_cli_video_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "bad --cut" in capsys.readouterr().err
     assert main(["twin", str(build), "--cut", "0.1-0.1", "--no-physics", "-T", "1"]) == 2
     assert "no wire joins" in capsys.readouterr().err
+
+
+def test_twin_refuses_a_build_changed_after_compile(
+    tmp_path: Path, cli: Callable[..., CliRun]
+) -> None:
+    """Like `bstool flash`, the twin runs only images that match the manifest's sha256."""
+    build = make_build(tmp_path)
+    image = build / "modules" / "L0.M1" / "slot0.eeprom"
+    image.write_bytes(b"\x01" + image.read_bytes()[1:])
+    run = cli("twin", str(build), "-T", "1", "--no-physics", "-q")
+    assert run.code != 0
+    assert "differs from the manifest's sha256" in run.err and "bstool compile" in run.err
