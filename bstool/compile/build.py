@@ -18,6 +18,7 @@ from bstool.compile import describe
 from bstool.compile.calibration import DEFAULT, Calibration, load_calibration
 from bstool.compile.plan import ModulePlan, build_plans, estimates, exchange_ms
 from bstool.compile.render import render_module
+from bstool.compile.results import ModuleResult, SlotResult
 from bstool.controllers import Controller, controller_hash, load_controller
 from bstool.errors import BstoolError, BuildError, InputError, SourceError
 from bstool.moduleid import ModuleId, parse_module
@@ -25,27 +26,6 @@ from bstool.tokenizer import Project, tokenize_source
 
 SLOT_BYTES = buildfile.SLOT_BYTES
 RAM_BYTES = describe.RAM_BYTES
-
-
-@dataclass
-class SlotResult:
-    slot: int
-    file: str
-    source_sha256: str
-    program_bytes: int | None = None
-    data_bytes: int | None = None
-    eeprom: bytes | None = None
-    packets: bytes | None = None
-
-
-@dataclass
-class ModuleResult:
-    plan: ModulePlan
-    sources: dict[str, str]
-    slots: list[SlotResult]
-    ram_bytes: int
-    timing: dict[str, float]
-    ram_map: dict[str, tuple[str, int]] | None = None  # STATE/TN location (twin's state probe)
 
 
 @dataclass

@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 import hashlib
-from typing import TYPE_CHECKING
 
 from bstool import buildfile as bf
+from bstool.compile.results import ModuleResult, SlotResult
 from bstool.compile.timing import PAD_PIN
 from bstool.compile.topology import PORT_TEXT, PORTS, SERVO_PIN, links, pin_role
 from bstool.controllers import Controller
 from bstool.wire import announce, link
-
-if TYPE_CHECKING:
-    from bstool.compile.build import ModuleResult, SlotResult
 
 RAM_BYTES = 26
 

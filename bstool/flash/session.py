@@ -10,7 +10,6 @@ resume at that record, since a reset discards a partial record and sent blocks a
 from __future__ import annotations
 
 import errno
-import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,9 +25,8 @@ from bstool.flash.errors import (
     WrongStampError,
 )
 from bstool.flash.port import NO_MODEM_SCHEMES, scheme
+from bstool.wire import announce
 from bstool.wire import programming as P
-
-ANNOUNCEMENT = re.compile(rb"bstool L(\d+)\.M(\d+) ([0-9a-fA-F]{8})\r")
 
 
 @dataclass
@@ -397,6 +395,6 @@ class Programmer:
             if not chunk:
                 continue
             buf = (buf + chunk)[-64:]
-            found = ANNOUNCEMENT.search(buf)
+            found = announce.find(buf)
             if found:
-                return int(found.group(1)), int(found.group(2)), found.group(3).decode().lower()
+                return found.module.leg, found.module.module, found.hash8
