@@ -8,6 +8,7 @@ import shutil
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 
@@ -17,24 +18,25 @@ from bstool.wire import announce
 from bstool.wire import programming as P
 
 
-@dataclass(frozen=True)
-class CliRun:
+class CliRun(NamedTuple):
     code: int
     out: str
     err: str
 
 
-@pytest.fixture
-def cli(capsys: pytest.CaptureFixture[str]) -> Callable[..., CliRun]:
-    """``cli("states", "best.json")``: run bstool in-process; exit code and captured output."""
+def run_cli(args: Sequence[str], capsys: pytest.CaptureFixture[str]) -> CliRun:
+    """Run ``bstool ARGS`` in-process: its exit code and what it printed (captured)."""
     from bstool.cli import main
 
-    def run(*args: str) -> CliRun:
-        code = main(list(args))
-        out = capsys.readouterr()
-        return CliRun(code, out.out, out.err)
+    code = main(list(args))
+    out = capsys.readouterr()
+    return CliRun(code, out.out, out.err)
 
-    return run
+
+@pytest.fixture
+def cli(capsys: pytest.CaptureFixture[str]) -> Callable[..., CliRun]:
+    """``cli("states", "best.json")``: :func:`run_cli` bound to this test's capsys."""
+    return lambda *args: run_cli(args, capsys)
 
 
 BuiltinBuild = Callable[..., Path]
@@ -55,7 +57,9 @@ def builtin_build(tmp_path_factory: pytest.TempPathFactory) -> Iterator[BuiltinB
         if key not in cache:
             out = tmp_path_factory.mktemp(f"{model}-{period}") / "build"
             more = ["--period", str(period)] if period is not None else []
-            assert main(["compile", str(builtin_controller(model)), "-o", str(out), "-q", *more]) == 0
+            assert (
+                main(["compile", str(builtin_controller(model)), "-o", str(out), "-q", *more]) == 0
+            )
             cache[key] = out
         if not fresh:
             return cache[key]
