@@ -6,6 +6,7 @@ mujoco is imported only after the GL backend is chosen (``--video`` renders offs
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -183,7 +184,7 @@ def _load_source(
         return _from_controller(controller, data, transitions, failed)
     if states_file == "-":  # e.g. bstool states best.json | bstool simulate --states -
         try:
-            data = json.loads(click.get_text_stream("stdin").read())
+            data = json.loads(sys.stdin.read())
         except json.JSONDecodeError as exc:
             raise InputError(
                 f"<stdin>:{exc.lineno}:{exc.colno}: malformed JSON in states: {exc.msg}"
