@@ -27,7 +27,6 @@ from bstool.flash.flasher import ModuleReport, WalkResult, flash_all, flash_modu
 from bstool.flash.port import open_port, resolve_auto
 from bstool.flash.session import FAST, Programmer, Progress, SlotResult, Timing
 from bstool.flash.target import ModulePlan, SlotPlan, Target, load_target
-from bstool.wire import programming as protocol  # the old name of bstool.wire.programming
 
 __all__ = [
     "FAST",
@@ -53,7 +52,6 @@ __all__ = [
     "flash_module",
     "load_target",
     "open_port",
-    "protocol",
     "read_ports_file",
     "resolve_auto",
 ]
