@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bstool.buildfile import Build
 from bstool.compile.build import compile_loaded
 from bstool.controllers import Controller, from_json, load_controller
 from bstool.moduleid import ModuleId
@@ -40,7 +41,7 @@ def _cut(model: str, legs: int, modules: int) -> Controller:
 
 def _run(
     ctrl: Controller, out: Path, transitions: int, dead: list[ModuleId], period: float | None
-) -> tuple[robot.buildfile.Build, robot.TwinResult]:
+) -> tuple[Build, robot.TwinResult]:
     res = compile_loaded(ctrl, out, period=period)
     assert res.tokenized
     build = robot.load_build(out)
