@@ -13,8 +13,8 @@ import time
 
 import hil_mock  # noqa: F401  (registers bstwin://)
 from bstool.flash import Programmer, Timing
-from bstool.flash import protocol as P
 from bstool.flash.port import open_port
+from bstool.wire import programming as P
 from hil_mock.progdevice import ProgrammingDevice
 from hil_mock.ptyendpoint import PtyEndpoint
 from hil_mock.urlhandler import add_twin, remove_twin

@@ -9,10 +9,12 @@ from typing import Any
 
 import numpy as np
 
+from bstool.buildfile import Build
 from bstool.moduleid import ModuleId
 from bstool.robot import RobotSpec
 from bstool.sim.simulator import Simulator
-from hil_mock.robot import Build, TwinResult
+from bstool.wire import announce
+from hil_mock.twin_result import TwinResult
 
 
 @dataclass
@@ -42,16 +44,17 @@ class TwinCheck:
 def settle_seconds(build: Build) -> float:
     """How long the twin's robot holds R^0 before the first transition (power-up period plus
     roll call, the manifest's ``first_transition_s``)."""
-    return max(m["timing"]["first_transition_s"] for m in build.manifest["modules"])
+    return max(m.timing.first_transition_s for m in build.manifest.modules)
 
 
 def reference_simulator(build: Build) -> Simulator:
-    """``bstool simulate``'s simulator for ``build``'s robot, settling in R^0 as long as the
-    twin does before its first transition: the twin's path then starts from the same rest
-    pose (a 0.5 s settle leaves the robot still sliding, which shifts early paths by cm)."""
-    robot = build.manifest["robot"]
-    spec = RobotSpec(legs=robot["legs"], modules=robot["modules"], states=robot["states"])
-    return Simulator(spec, settle_time=settle_seconds(build))
+    """``bstool simulate``'s simulator for ``build``'s robot, with the build's transition time
+    (``compile --period``), settling in R^0 as long as the twin does before its first
+    transition: the twin's path then starts from the same rest pose (a 0.5 s settle leaves the
+    robot still sliding, which shifts early paths by cm)."""
+    robot = build.manifest.robot
+    spec = RobotSpec(legs=robot.legs, modules=robot.modules, states=robot.states)
+    return Simulator(spec, transition_time=build.period, settle_time=settle_seconds(build))
 
 
 def check(
@@ -77,9 +80,9 @@ def check(
                     first = {"module": str(mid), "transition": t, "twin": seq[t : t + 5],
                              "reference": want[t : t + 5]}  # fmt: skip
     mean, std = result.period_stats()
-    hash8 = build.manifest["controller"]["hash8"]
-    ok = all(line == f"bstool {mid.label} {hash8}" for mid, line in result.announcements.items())
-    estimates = [m["timing"]["longest_servo_gap_s"] for m in build.manifest["modules"]]
+    hash8 = build.manifest.controller.hash8
+    ok = all(line == announce.line(mid, hash8) for mid, line in result.announcements.items())
+    estimates = [m.timing.longest_servo_gap_s for m in build.manifest.modules]
     gaps = list(result.servo_gaps.values())
     return TwinCheck(
         transitions=transitions,

@@ -17,7 +17,7 @@ import threading
 import time
 from collections import deque
 
-from bstool.flash.protocol import BITS_PER_BYTE
+from bstool.wire.programming import BITS_PER_BYTE
 from hil_mock.progdevice import ProgrammingDevice
 
 TIMINGS = ("none", "real", "virtual")

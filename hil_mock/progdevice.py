@@ -20,7 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from bstool.flash import protocol as P
+from bstool.wire import programming as P
 from hil_mock.eeprom import Eeprom
 
 

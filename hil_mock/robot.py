@@ -1,94 +1,44 @@
 """The robot twin: one virtual BS2sx per module, wired as the build says, driving MuJoCo.
 
-Every module runs its own EEPROM image on the token interpreter (:mod:`hil_mock.stamp`).
-The modules share one virtual time line. A conservative scheduler always advances the stamp
-that is furthest behind, and never past the next stamp's horizon, so a byte a module sends
-reaches exactly the neighbours that were listening (SERIN) when its start bit began — a BS2sx
-has no receive buffer, so a byte nobody listens to is lost, as on the robot.
-
-Each servo is an actuator of the MuJoCo robot of ``bstool simulate``: a PULSOUT on the servo pin
-sets its target angle through the module's calibration (the inverse of the build's state →
-pulse table). A servo that gets no pulse for :data:`LIMP_AFTER_S` goes limp (no torque) until
-the next pulse. Physics advances in chunks of :data:`CHUNK_STEPS` MuJoCo steps; the stamps are
-advanced to the end of each chunk first (docs/twin.md).
+Every module runs its own EEPROM image on the token interpreter (:mod:`hil_mock.stamp`). The
+twin's jobs live in their own modules, combined here: the servo body (:mod:`hil_mock.body`),
+link routing and noise (:mod:`hil_mock.links`), fault injection (:mod:`hil_mock.faults`) and
+scheduling (:mod:`hil_mock.schedule`); what it observed is :mod:`hil_mock.twin_result`. The
+build is read with :func:`bstool.buildfile.load`. Physics advances in chunks of
+:data:`CHUNK_STEPS` MuJoCo steps; the stamps are advanced to the end of each chunk first
+(docs/twin.md).
 """
 
 from __future__ import annotations
 
-import json
-import math
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from bstool import buildfile
 from bstool.errors import InputError
-from bstool.moduleid import ModuleId, parse_module
-from hil_mock.stamp import NEVER, Stamp, StampIO, Status
+from bstool.moduleid import ModuleId
+from bstool.wire import announce
+from hil_mock.body import LIMP_AFTER_S, Body, ServoTrack
+from hil_mock.faults import Faults, dying_modules, failed_modules
+from hil_mock.links import Links, wires
+from hil_mock.schedule import CHUNK_STEPS, Scheduler
+from hil_mock.stamp import Stamp, StampIO
+from hil_mock.twin_result import NS, ModuleRecord, TwinResult, ram_reader
 
-LIMP_AFTER_S = 0.06
-"""An analog hobby servo holds its position for a frame or two after the last pulse, then stops
-driving; 60 ms (3 frames of 20 ms) is the threshold used here."""
-CHUNK_STEPS = 5
-"""MuJoCo steps per scheduling chunk (10 ms at the 2 ms step): shorter than one servo frame."""
-NS = 1_000_000_000
+__all__ = [
+    "CHUNK_STEPS",
+    "LIMP_AFTER_S",
+    "NS",
+    "ModuleRecord",
+    "RobotTwin",
+    "ServoTrack",
+    "TwinResult",
+    "load_build",
+]
 
-
-@dataclass
-class Build:
-    """A compile output directory: manifest.json and the slot images it names."""
-
-    root: Path
-    manifest: dict[str, Any]
-
-    @property
-    def legs(self) -> int:
-        return int(self.manifest["robot"]["legs"])
-
-    @property
-    def modules(self) -> int:
-        return int(self.manifest["robot"]["modules"])
-
-    @property
-    def period(self) -> float:
-        return float(self.manifest["period_s"])
-
-    def module(self, mid: ModuleId) -> dict[str, Any]:
-        for m in self.manifest["modules"]:
-            if m["module"] == str(mid):
-                return dict(m)
-        raise InputError(f"module {mid} is not in the build {self.root}")
-
-    def images(self, mid: ModuleId) -> dict[int, bytes]:
-        """Slot number → 2048-byte image of a module, read from the build."""
-        out = {}
-        for slot in self.module(mid)["slots"]:
-            if "eeprom" not in slot:
-                raise InputError(
-                    f"{self.root}: module {mid} slot {slot['slot']} was not tokenized",
-                    hint="re-run `bstool compile` with the tokenizer installed",
-                )
-            out[int(slot["slot"])] = (self.root / slot["eeprom"]).read_bytes()
-        return out
-
-
-def load_build(path: str | Path) -> Build:
-    """Read ``path/manifest.json`` (a ``bstool compile`` output)."""
-    root = Path(path)
-    man = root / "manifest.json"
-    if not man.is_file():
-        raise InputError(
-            f"{root} is not a bstool build (no manifest.json)", hint="run `bstool compile` first"
-        )
-    try:
-        manifest = json.loads(man.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{man}:{exc.lineno}:{exc.colno}: malformed JSON: {exc.msg}") from None
-    if manifest.get("format") != "bstool.build/1":
-        raise InputError(f"{man}: expected format bstool.build/1, got {manifest.get('format')!r}")
-    return Build(root, manifest)
+load_build = buildfile.load
+"""Read a build folder (kept under its old name: :func:`bstool.buildfile.load`)."""
 
 
 class _Eeprom8:
@@ -102,73 +52,6 @@ class _Eeprom8:
 
     def write_byte(self, slot: int, addr: int, value: int) -> None:
         self.slots[slot][addr] = value
-
-
-@dataclass
-class ServoTrack:
-    """One module's servo as the twin sees it."""
-
-    actuator: int
-    pin: int
-    widths: np.ndarray  # PULSOUT units, sorted ascending
-    angles: np.ndarray  # radians for those widths
-    target: float
-    last_pulse_ns: int = -(10**15)
-    longest_gap_ns: int = 0
-    pulses: int = 0
-    limp: bool = False
-
-    def angle_of(self, units: int) -> float:
-        return float(np.interp(units, self.widths, self.angles))
-
-
-@dataclass
-class ModuleRecord:
-    """What one module did: its states and when it made its transitions. A transition is seen
-    at the first servo pulse after the module's transition counter moved: the moment its servo
-    gets the new target (every program pulses its servo at least every 25 ms)."""
-
-    states: list[int] = field(default_factory=list)
-    times_ns: list[int] = field(default_factory=list)
-    last_tn: int | None = None
-
-
-@dataclass
-class TwinResult:
-    states: dict[ModuleId, list[int]]  # observed R^0..R^T per module
-    path: np.ndarray  # (T+1, 2): disc xy when the reference module started transitions 1..T+1
-    periods: dict[ModuleId, list[float]]  # seconds between a module's transitions
-    servo_gaps: dict[ModuleId, float]  # longest time between two servo pulses, seconds
-    stalled: list[ModuleId]
-    announcements: dict[ModuleId, str]
-    virtual_seconds: float
-    instructions: int
-
-    @property
-    def displacement(self) -> tuple[float, float]:
-        if len(self.path) < 2:  # run without physics: no path
-            return (0.0, 0.0)
-        d = self.path[-1] - self.path[0]
-        return float(d[0]), float(d[1])
-
-    @property
-    def distance(self) -> float:
-        return math.hypot(*self.displacement)
-
-    def state_array(self, legs: int, modules: int, transitions: int) -> np.ndarray:
-        """(T+1, n, m) like ``bstool states`` (modules that stalled are padded with -1)."""
-        out = -np.ones((transitions + 1, legs, modules), dtype=np.int64)
-        for mid, seq in self.states.items():
-            k = min(len(seq), transitions + 1)
-            out[:k, mid.leg, mid.module] = seq[:k]
-        return out
-
-    def period_stats(self) -> tuple[float, float]:
-        """Mean and standard deviation of every module's transition period (seconds)."""
-        allp = [p for ps in self.periods.values() for p in ps]
-        if not allp:
-            return math.nan, math.nan
-        return float(np.mean(allp)), float(np.std(allp))
 
 
 class _TwinIO(StampIO):
@@ -186,48 +69,7 @@ class _TwinIO(StampIO):
             self.twin._servo_pulse(self.mid, servo, start_ns, width_ns)
 
 
-def _ram_reader(spec: Any) -> Callable[[Stamp], int]:
-    """A reader of one RAM variable given as ["nib"|"byte"|"word"|"bit", index]."""
-    kind, index = spec
-    index = int(index)
-    if kind == "nib":
-        return lambda s: s.memory.nib(index)
-    if kind == "byte":
-        return lambda s: s.memory.byte(index)
-    if kind == "word":
-        return lambda s: s.memory.word(index)
-    if kind == "bit":
-        return lambda s: s.memory.bit(index)
-    raise InputError(f"unknown RAM variable kind {kind!r} in the build's ram_map")
-
-
-def _wires(
-    build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]
-) -> dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]]:
-    """(module, pin) -> the (module, pin) ends it is wired to, without the ``cut`` wires."""
-    ends = [
-        (parse_module(w["master"]), int(w["master_pin"]), parse_module(w["slave"]),
-         int(w["slave_pin"]))
-        for w in build.manifest["links"]
-    ]  # fmt: skip
-    pairs = list(cut)
-    cuts = {frozenset(c) for c in pairs}
-    wired = {frozenset((a, b)) for a, _, b, _ in ends}
-    for a, b in pairs:
-        if frozenset((a, b)) not in wired:
-            raise InputError(
-                f"cannot cut {a}-{b}: no wire joins these modules in this build",
-                hint="WIRING.md lists the wires",
-            )
-    wires: dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]] = {}
-    for a, pin_a, b, pin_b in ends:
-        if frozenset((a, b)) not in cuts:
-            wires.setdefault((a, pin_a), []).append((b, pin_b))
-            wires.setdefault((b, pin_b), []).append((a, pin_a))
-    return wires
-
-
-class RobotTwin:
+class RobotTwin(Body, Links, Faults, Scheduler):
     """30 virtual modules (or n·m) wired by the build, with the MuJoCo robot as their body.
 
     ``eeproms`` (module → anything with ``read_slot``/``slot``, e.g. a flashed
@@ -243,7 +85,7 @@ class RobotTwin:
 
     def __init__(
         self,
-        build: Build,
+        build: buildfile.Build,
         *,
         eeproms: Mapping[ModuleId, object] | None = None,
         failed: Iterable[ModuleId | str] = (),
@@ -262,22 +104,13 @@ class RobotTwin:
         self.noise_events = {"flipped": 0, "dropped": 0}
         legs, modules = build.legs, build.modules
         self.order = [ModuleId(i, j) for i in range(legs) for j in range(modules)]
-        self.failed = {
-            m if isinstance(m, ModuleId) else parse_module(m, legs, modules) for m in failed
-        }
-        self.die: dict[ModuleId, int] = {}
-        for key, when in (die or {}).items():
-            mid = key if isinstance(key, ModuleId) else parse_module(key, legs, modules)
-            if int(when) < 0:
-                raise InputError(f"module {mid} cannot die at transition {when}: T must be >= 0")
-            if mid in self.failed:
-                raise InputError(f"module {mid} is both failed from power-up and dying at {when}")
-            self.die[mid] = int(when)
+        self.failed = failed_modules(failed, legs, modules)
+        self.die = dying_modules(die, self.failed, legs, modules)
         self.limp_failed = limp_failed
         self.died: dict[ModuleId, int] = {}  # module -> virtual ns when its stamp stopped
         self._killed = False
-        self._nn = str(build.manifest.get("controller", {}).get("model", "")).startswith("nn")
-        self.wires = _wires(build, cut)
+        self._nn = build.manifest.controller.model.startswith("nn")
+        self.wires = wires(build, cut)
         self.stamps: dict[ModuleId, Stamp] = {}
         self.records: dict[ModuleId, ModuleRecord] = {m: ModuleRecord() for m in self.order}
         self.servos: dict[ModuleId, ServoTrack] = {}
@@ -287,117 +120,25 @@ class RobotTwin:
             info = build.module(mid)
             self.servos[mid] = self._servo(mid, info)
             if mid in self.failed:
-                r0 = int(info["initial_state"])
+                r0 = int(info.initial_state)
                 self.records[mid].states.append(r0)
                 self.servos[mid].limp = limp_failed
                 continue
             source = eeproms.get(mid) if eeproms is not None else None
             store = _Eeprom8(build.images(mid)) if source is None else source
             self.stamps[mid] = Stamp(store, io=_TwinIO(self, mid), name=mid.label)
-            ram = info.get("ram_map")
-            if not ram:
+            ram = info.ram_map
+            if not ram or "state" not in ram or "tn" not in ram:
                 raise InputError(
                     f"{build.root}: module {mid} has no ram_map in manifest.json",
                     hint="re-run `bstool compile` with this bstool version",
                 )
-            self._readers[mid] = (_ram_reader(ram["state"]), _ram_reader(ram["tn"]))
+            self._readers[mid] = (ram_reader(ram["state"]), ram_reader(ram["tn"]))
         self.ran: dict[ModuleId, Stamp] = dict(self.stamps)  # every stamp that ever ran
         live = [m for m in self.order if m in self.stamps and m not in self.die]
         self.reference = live[0] if live else next(iter(self.stamps), None)
         self.t_ns = 0
         self.path: list[tuple[float, float]] = []
-
-    # ---- physics --------------------------------------------------------------------------
-    def _init_physics(self, physics: bool) -> None:
-        self.sim = None
-        if not physics:
-            self.dt_ns = 2_000_000
-            return
-        from bstool.robot import RobotSpec
-        from bstool.sim.simulator import Simulator
-
-        robot = self.build.manifest["robot"]
-        spec = RobotSpec(legs=robot["legs"], modules=robot["modules"], states=robot["states"])
-        self.sim = Simulator(spec)
-        self.sim.reset(self.sim.data)
-        self.dt_ns = round(self.sim.model.opt.timestep * NS)
-        self._gain = self.sim.model.actuator_gainprm.copy()
-        self._bias = self.sim.model.actuator_biasprm.copy()
-
-    def _servo(self, mid: ModuleId, info: dict[str, Any]) -> ServoTrack:
-        from bstool.robot import state_to_angle
-
-        widths = np.array(info["servo"]["pulsout"], dtype=float)
-        k = len(widths)
-        angles = np.array([state_to_angle(s, k) for s in range(k)])
-        order = np.argsort(widths, kind="stable")
-        servo_pin = next(p["pin"] for p in info["pins"] if p["use"] == "servo")
-        r0 = int(info["initial_state"])
-        actuator = mid.leg * self.build.modules + mid.module
-        return ServoTrack(actuator, servo_pin, widths[order], angles[order], float(angles[r0]))
-
-    def _apply_servos(self) -> None:
-        if self.sim is None:
-            return
-        model, data = self.sim.model, self.sim.data
-        limp_after = int(LIMP_AFTER_S * NS)
-        for mid, servo in self.servos.items():
-            a = servo.actuator
-            if mid in self.stamps:
-                servo.limp = self.t_ns - servo.last_pulse_ns > limp_after
-            if servo.limp:
-                model.actuator_gainprm[a] = 0.0
-                model.actuator_biasprm[a] = 0.0
-            else:
-                model.actuator_gainprm[a] = self._gain[a]
-                model.actuator_biasprm[a] = self._bias[a]
-                data.ctrl[a] = servo.target
-
-    def _disc_xy(self) -> tuple[float, float]:
-        assert self.sim is not None
-        q = self.sim.data.qpos
-        return (float(q[0]), float(q[1]))
-
-    # ---- links and servos (called from the stamps' IO) ------------------------------------
-    def _route(self, mid: ModuleId, pin: int, value: int, start_ns: int, mode: int) -> None:
-        if self.noise and self.rng.random() < self.noise:
-            if self.rng.random() < 0.5:  # the byte is lost (a start bit not seen)
-                self.noise_events["dropped"] += 1
-                return
-            value ^= 1 << int(self.rng.integers(8))  # one bit flipped on the wire
-            self.noise_events["flipped"] += 1
-        for peer, peer_pin in self.wires.get((mid, pin), ()):
-            stamp = self.stamps.get(peer)
-            if stamp is not None:
-                stamp.deliver_byte(peer_pin, value, start_ns, mode)
-
-    def _dies_at_pulse(self, mid: ModuleId, stamp: Stamp, after: bool) -> bool:
-        """Whether a dying module stops at this servo pulse (``after``: once it went out).
-
-        The module dies once its servo shows S^T and its neighbours have had S^T. A CA program
-        shows S^T, then exchanges it, then looks up S^(T+1): it stops at the first pulse of
-        S^(T+1), before it goes out (tn has changed T + 1 times; nothing happens on a link
-        between the lookup and that pulse). An NN program relays S^T downstream first and then
-        shows it: it stops right after the first pulse of S^T (tn has changed T times)."""
-        when = self.die.get(mid)
-        if when is None:
-            return False
-        rec = self.records[mid]
-        if self._nn:
-            return after and len(rec.states) == when + 1
-        return (
-            not after
-            and len(rec.states) == when + 1
-            and self._readers[mid][1](stamp) != rec.last_tn
-        )
-
-    def _kill(self, mid: ModuleId, stamp: Stamp, t_ns: int) -> None:
-        stamp.status = Status.STOPPED  # for good: ends the running run_until at once
-        stamp.brk = True
-        del self.stamps[mid]
-        self.died[mid] = t_ns
-        self.servos[mid].limp = self.limp_failed
-        self._killed = True
 
     def _servo_pulse(self, mid: ModuleId, servo: ServoTrack, start_ns: int, width_ns: int) -> None:
         if mid not in self.stamps:
@@ -435,31 +176,6 @@ class RobotTwin:
             rec.times_ns.append(stamp.t)
             if mid == self.reference and self.sim is not None:
                 self.path.append(self._disc_xy())
-
-    # ---- scheduling -----------------------------------------------------------------------
-    def _advance_stamps(self, limit_ns: int) -> None:
-        """Run every stamp up to ``limit_ns``, always the one furthest behind first."""
-        stamps = list(self.stamps.items())
-        self._killed = False
-        while True:
-            if self._killed:  # a module died in the last step
-                stamps = list(self.stamps.items())
-                self._killed = False
-            best: tuple[ModuleId, Stamp] | None = None
-            h1 = h2 = NEVER
-            for item in stamps:
-                h = item[1].horizon
-                if h < h1:
-                    h2, h1, best = h1, h, item
-                elif h < h2:
-                    h2 = h
-            if best is None or h1 >= limit_ns:
-                return
-            stamp = best[1]
-            if stamp.status is Status.WAITING:
-                stamp.expire_wait()
-            else:
-                stamp.run_until(min(limit_ns, max(h2, h1 + 1)))
 
     def run(
         self,
@@ -521,8 +237,7 @@ class RobotTwin:
         path = np.array(self.path[: transitions + 1], dtype=float).reshape(-1, 2)
         gaps = {mid: s.longest_gap_ns / NS for mid, s in self.servos.items() if mid in self.ran}
         announcements = {
-            mid: bytes(stamp.debug).decode("ascii", "replace").split("\r")[0]
-            for mid, stamp in self.ran.items()
+            mid: announce.first_line(bytes(stamp.debug)) for mid, stamp in self.ran.items()
         }
         return TwinResult(
             states=states,

@@ -1,4 +1,4 @@
-"""Stand-in runners for slot 0 until (or besides) the token interpreter.
+"""Runners for slot 0: the token interpreter, and stand-ins for tests.
 
 :class:`AnnounceRunner` prints a fixed start-up line; :class:`ScanRunner` prints the
 announcement found as plain ASCII inside slot 0 (test images carry it in their DATA), so what
@@ -7,12 +7,10 @@ is heard depends on what was really flashed.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable
 
+from bstool.wire import announce
 from hil_mock.eeprom import Eeprom
-
-_LINE = re.compile(rb"bstool L\d+\.M\d+ [0-9a-f]{8}\r")
 
 
 class AnnounceRunner:
@@ -38,9 +36,9 @@ class ScanRunner:
 
     def start(self, eeprom: Eeprom, emit: Callable[[bytes], None]) -> None:
         self.starts += 1
-        found = _LINE.search(eeprom.slot(0))
+        found = announce.find_raw(eeprom.slot(0))
         if found:
-            emit(found.group(0))
+            emit(found)
 
     def stop(self) -> None:
         pass
@@ -75,10 +73,6 @@ class InterpreterRunner:
         pass
 
 
-def preview_runner() -> InterpreterRunner | ScanRunner:
-    """The runner for twins people flash by hand: the interpreter when it is installed."""
-    try:
-        import hil_mock.stamp.interpreter  # noqa: F401
-    except ImportError:
-        return ScanRunner()
+def preview_runner() -> InterpreterRunner:
+    """The runner for twins people flash by hand: slot 0 on the token interpreter."""
     return InterpreterRunner()

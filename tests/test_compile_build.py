@@ -85,6 +85,20 @@ def test_refuses_foreign_output_folder(tmp_path: Path) -> None:
     assert (tmp_path / "mine.txt").read_text() == "precious"
 
 
+def test_a_foreign_manifest_json_does_not_make_a_build(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder is replaced only if its manifest.json has the bstool build format: a folder that
+    merely holds a file called manifest.json (someone's web app, say) is left alone."""
+    (tmp_path / "manifest.json").write_text('{"name": "my web app"}')
+    (tmp_path / "index.html").write_text("precious")
+    assert main(["compile", str(CA), "-o", str(tmp_path), "--period", "0.5", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "not a bstool build" in err and "-o" in err
+    assert (tmp_path / "index.html").read_text() == "precious"
+    assert (tmp_path / "manifest.json").read_text() == '{"name": "my web app"}'
+
+
 def test_period_too_short(tmp_path: Path) -> None:
     with pytest.raises(BuildError, match="too short") as err:
         compile_controller(CA, tmp_path / "b", period=0.05)
@@ -160,12 +174,7 @@ def test_missing_controller(tmp_path: Path) -> None:
     assert not (tmp_path / "b").exists()
 
 
-def _tokenizer_ready() -> bool:
-    return build._tokenizer() is not None
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(not _tokenizer_ready(), reason="bstool.tokenizer.tokenize_file not landed yet")
 @pytest.mark.parametrize("model", ["ca1d", "ca2dsing", "ca2ddiff", "nnsig", "nnsin"])
 def test_every_program_tokenizes_and_fits(model: str, tmp_path: Path) -> None:
     res = compile_controller(GOLDEN / f"{model}.json", tmp_path / "b", period=0.5)
@@ -187,12 +196,12 @@ def test_slot_that_does_not_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
 
     from bstool.errors import SourceError
 
-    def fake_tokenize(path: Path) -> object:
-        text = (path.parent / "rules1.bsx").read_text()
+    def fake_tokenize(sources: dict[str, str]) -> object:
+        text = sources["rules1.bsx"]
         if text.count("$") > 100:  # the real table "does not fit"; the probe has one byte
             raise SourceError(
                 "Data occupies same location as program",
-                file=str(path.parent / "rules1.bsx"),
+                file="rules1.bsx",
                 line=30,
                 column=1,
                 code=124,
@@ -200,7 +209,7 @@ def test_slot_that_does_not_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
         image = SimpleNamespace(program_bytes=1100, data_bytes=1)
         return SimpleNamespace(slots={0: image, 1: image, 2: image})
 
-    monkeypatch.setattr(build, "_tokenizer", lambda: fake_tokenize)
+    monkeypatch.setattr(build, "_tokenize_sources", fake_tokenize)
     with pytest.raises(
         BuildError, match=r"slot 1 \(rules1.bsx\) does not fit: 76 bytes over"
     ) as err:

@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bstool.compile import link
 from bstool.compile.topology import links, module_links, reads
 from bstool.controllers import CA_MODELS, MODELS, NN_MODELS
 from bstool.moduleid import ModuleId, all_modules
+from bstool.wire import link
 
 VECTORS = Path(__file__).resolve().parents[1] / "protocol" / "vectors"
 
@@ -98,3 +98,17 @@ def test_ca2d_lead_has_four_wires() -> None:
     lead = module_links(wires, ModuleId(2, 0))
     assert {str(lk.peer(ModuleId(2, 0))) for lk in lead} == {"1.0", "3.0", "2.1", "2.5"}
     assert {lk.pin(ModuleId(2, 0)) for lk in lead} == {0, 1, 2, 3}
+
+
+def test_link_vector_files_are_up_to_date() -> None:
+    """The generator builds the vectors from protocol/link.md's rules alone (no bstool code)."""
+    import importlib.util
+
+    path = VECTORS / "make_link_vectors.py"
+    assert "import bstool" not in path.read_text() and "from bstool" not in path.read_text()
+    spec = importlib.util.spec_from_file_location("make_link_vectors", path)
+    assert spec and spec.loader
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    for name, text in module.render().items():
+        assert text == (VECTORS / name).read_text(), "run protocol/vectors/make_link_vectors.py"

@@ -4,7 +4,7 @@ timing the manifest promises (servo gaps, the period).
 
 Small robots cut from the golden controllers run every model family quickly; the shipped NN
 controller (5 × 6) checks dead modules in the middle of a leg, which the bypass wires cover
-(protocol/link.md §2). Skipped until hil_mock is importable.
+(protocol/link.md §2).
 """
 
 from __future__ import annotations
@@ -14,11 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bstool.buildfile import Build
 from bstool.compile.build import compile_loaded
 from bstool.controllers import Controller, from_json, load_controller
 from bstool.moduleid import ModuleId
+from hil_mock import robot
 
-robot = pytest.importorskip("hil_mock.robot")
 GOLDEN = Path(__file__).parent / "golden" / "compile"
 SHIPPED = Path(__file__).parent.parent / "bstool" / "data" / "controllers"
 PERIOD_TOLERANCE = 0.03  # of the manifest's nominal transition (docs/compile.md, Period)
@@ -40,7 +41,7 @@ def _cut(model: str, legs: int, modules: int) -> Controller:
 
 def _run(
     ctrl: Controller, out: Path, transitions: int, dead: list[ModuleId], period: float | None
-) -> tuple[object, object]:
+) -> tuple[Build, robot.TwinResult]:
     res = compile_loaded(ctrl, out, period=period)
     assert res.tokenized
     build = robot.load_build(out)
@@ -69,15 +70,15 @@ def test_compiled_robot_follows_reference(
     model: str, legs: int, modules: int, dead: list[ModuleId], tmp_path: Path
 ) -> None:
     build, result = _run(_cut(model, legs, modules), tmp_path / "build", 20, dead, 0.5)
-    for m in build.manifest["modules"]:  # type: ignore[attr-defined]
-        mid = ModuleId(*map(int, m["module"].split(".")))
+    for m in build.manifest.modules:
+        mid = m.module
         if mid in dead:
             continue
-        gap = result.servo_gaps[mid]  # type: ignore[attr-defined]
+        gap = result.servo_gaps[mid]
         assert gap < 0.025, f"{mid.label}: servo gap {gap * 1000:.1f} ms"
-        assert gap <= m["timing"]["longest_servo_gap_s"] + 0.0005, "manifest estimate too low"
-    nominal = build.manifest["modules"][0]["timing"]["nominal_transition_s"]  # type: ignore[attr-defined]
-    mean, _ = result.period_stats()  # type: ignore[attr-defined]
+        assert gap <= m.timing.longest_servo_gap_s + 0.0005, "manifest estimate too low"
+    nominal = build.manifest.modules[0].timing.nominal_transition_s
+    mean, _ = result.period_stats()
     assert abs(mean - nominal) < PERIOD_TOLERANCE * nominal, (mean, nominal)
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import zlib
 
@@ -122,7 +121,6 @@ def test_angles() -> None:
     assert angles_to_states(phis).tolist() == [angle_to_state(p) for p in phis]
 
 
-@pytest.mark.skipif(importlib.util.find_spec("bstool.robot") is None, reason="no robot yet")
 def test_angles_match_robot() -> None:
     from bstool.robot import state_to_angle as robot_angle
 

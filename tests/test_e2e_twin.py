@@ -33,11 +33,10 @@ PERIOD_TOLERANCE = 0.03  # measured mean period against the compiled period
 
 
 @pytest.fixture(scope="module", params=BUILTIN)
-def flashed(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+def flashed(request: pytest.FixtureRequest, builtin_build):  # type: ignore[no-untyped-def]
     model = request.param
     source = builtin_controller(model)
-    build = tmp_path_factory.mktemp(model) / "build"
-    assert main(["compile", str(source), "-o", str(build)]) == 0
+    build = builtin_build(model, fresh=True)  # flash writes its progress file into it
     manifest = load_build(build)
     fleet = make_fleet(manifest.legs, manifest.modules)
     ports = build.parent / "ports.json"
@@ -61,7 +60,7 @@ def test_states_equal_the_reference(flashed) -> None:  # type: ignore[no-untyped
     np.testing.assert_array_equal(
         result.state_array(build.legs, build.modules, LONG), ctrl.states(LONG)
     )
-    hash8 = build.manifest["controller"]["hash8"]
+    hash8 = build.manifest.controller.hash8
     assert all(a == f"bstool {m.label} {hash8}" for m, a in result.announcements.items())
     mean, _ = result.period_stats()  # every module keeps the compiled period
     assert abs(mean - build.period) <= PERIOD_TOLERANCE * build.period
@@ -89,9 +88,9 @@ def test_path_and_timing_agree_with_simulator_and_manifest(flashed) -> None:  # 
     tolerance = max(PATH_FLOOR_M, PATH_TOLERANCE * length)
     assert np.abs(twin_path - sim_path).max() <= tolerance
     # timing: the servo never starved beyond the estimate
-    for m in build.manifest["modules"]:
-        mid = ModuleId(*map(int, m["module"].split(".")))
-        assert result.servo_gaps[mid] <= m["timing"]["longest_servo_gap_s"] * 1.1 + 0.001
+    for m in build.manifest.modules:
+        mid = m.module
+        assert result.servo_gaps[mid] <= m.timing.longest_servo_gap_s * 1.1 + 0.001
         assert result.servo_gaps[mid] <= 0.025 + 1e-6
 
 

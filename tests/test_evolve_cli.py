@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
 from bstool.cli import main
 from bstool.controllers import load_controller
@@ -18,9 +19,7 @@ TOY = ["--fitness", "toy", "--quiet", "--transitions", "8"]
 
 
 def evolve(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(["evolve", *args])
-    out = capsys.readouterr()
-    return code, out.out, out.err
+    return run_cli(["evolve", *args], capsys)
 
 
 def files(d: Path) -> tuple[str, str]:

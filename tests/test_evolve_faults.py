@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
-from bstool.cli import main
 from bstool.controllers import load_controller
 from bstool.errors import InputError
 from bstool.evolve.checkpoint import load_checkpoint, save_outputs
@@ -146,8 +146,8 @@ def test_checkpoint_resume_equals_uninterrupted(model: str, gens: int, tmp_path:
 
 
 def evolve(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
-    code = main(["evolve", *args])
-    return code, capsys.readouterr().err
+    run = run_cli(["evolve", *args], capsys)
+    return run.code, run.err
 
 
 @pytest.mark.parametrize("model", ["ca2dsing", "ca2ddiff"])

@@ -6,8 +6,6 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("bstool.sim.batch")
-
 from bstool.cli import main
 from bstool.controllers import load_controller
 from bstool.robot import RobotSpec

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
-from bstool.cli import main
 from bstool.controllers import load_controller
 from bstool.evolve.checkpoint import load_checkpoint, save_outputs
 from bstool.evolve.engine import GAParams, evolve_step, new_run, run
@@ -106,8 +106,8 @@ def test_checkpoint_resume_equals_uninterrupted(tmp_path: Path) -> None:
 
 
 def evolve(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
-    code = main(["evolve", *args])
-    return code, capsys.readouterr().err
+    run = run_cli(["evolve", *args], capsys)
+    return run.code, run.err
 
 
 def test_cli_records_mode_and_resumes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

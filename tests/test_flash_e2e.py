@@ -13,9 +13,6 @@ from bstool.cli import main
 from bstool.moduleid import all_modules
 from hil_mock.urlhandler import clear_twins, get_twin
 
-pytest.importorskip("bstool.compile")
-pytest.importorskip("hil_mock.stamp.interpreter")
-
 
 @pytest.fixture
 def controller(tmp_path: Path) -> Path:

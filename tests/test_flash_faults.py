@@ -19,8 +19,8 @@ import hil_mock  # noqa: F401
 from bstool.errors import DeviceError
 from bstool.flash import FAST, Programmer, Timing
 from bstool.flash import errors as E
-from bstool.flash import protocol as P
 from bstool.flash.port import open_port
+from bstool.wire import programming as P
 from hil_mock.progdevice import Faults, ProgrammingDevice
 from hil_mock.ptyendpoint import PtyEndpoint
 from hil_mock.urlhandler import add_twin, remove_twin

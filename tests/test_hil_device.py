@@ -12,7 +12,7 @@ import pytest
 import serial
 
 import hil_mock  # noqa: F401  (registers bstwin://)
-from bstool.flash import protocol as P
+from bstool.wire import programming as P
 from hil_mock.eeprom import Eeprom
 from hil_mock.line import Line
 from hil_mock.progdevice import Faults, ProgrammingDevice

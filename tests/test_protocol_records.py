@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bstool.flash import protocol as P
 from bstool.flash.target import parse_packets
+from bstool.wire import programming as P
 
 blocks = st.integers(0, P.BLOCKS - 1)
 data16 = st.binary(min_size=16, max_size=16)

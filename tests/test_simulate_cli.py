@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
-from bstool.cli import main
 from bstool.moduleid import ModuleId
 from bstool.sim import Simulator, hold_failed
 
@@ -27,17 +27,13 @@ def _write(tmp_path: Path, obj: object, name: str = "states.json") -> Path:
     return p
 
 
-def _run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(args)
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 def test_json_output_matches_the_simulator(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     states = _states()
-    code, out, _ = _run(["simulate", "--states", str(_write(tmp_path, states)), "--json"], capsys)
+    code, out, _ = run_cli(
+        ["simulate", "--states", str(_write(tmp_path, states)), "--json"], capsys
+    )
     assert code == 0
     obj = json.loads(out)
     expected = Simulator().run(np.array(states))
@@ -52,7 +48,7 @@ def test_states_file_as_argument_with_T_and_fail(
 ) -> None:
     states = _states(1, 3)
     path = _write(tmp_path, states)
-    code, out, _ = _run(["simulate", str(path), "-T", "2", "--fail", "1.2", "--json"], capsys)
+    code, out, _ = run_cli(["simulate", str(path), "-T", "2", "--fail", "1.2", "--json"], capsys)
     assert code == 0
     obj = json.loads(out)
     held = hold_failed(np.array(states)[:3], [ModuleId(1, 2)])
@@ -61,7 +57,7 @@ def test_states_file_as_argument_with_T_and_fail(
 
 
 def test_builtin_example_text_output(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = _run(["simulate", "--example", "-T", "2"], capsys)
+    code, out, _ = run_cli(["simulate", "--example", "-T", "2"], capsys)
     assert code == 0
     assert "built-in example" in out and "distance:" in out and "displacement:" in out
 
@@ -72,7 +68,7 @@ def test_builtin_evolved_controllers_replay_their_fitness(
 ) -> None:
     from bstool.builtin import builtin_controller
 
-    code, out, _ = _run(["simulate", "--model", model, "--json"], capsys)
+    code, out, _ = run_cli(["simulate", "--model", model, "--json"], capsys)
     fitness = json.loads(builtin_controller(model).read_text())["fitness"]
     assert code == 0 and json.loads(out)["distance"] == fitness
 
@@ -81,7 +77,7 @@ def test_plot_is_a_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     import matplotlib.image
 
     png = tmp_path / "path.png"
-    code, _, _ = _run(["simulate", "-T", "2", "--plot", str(png)], capsys)
+    code, _, _ = run_cli(["simulate", "-T", "2", "--plot", str(png)], capsys)
     assert code == 0
     image = matplotlib.image.imread(png)
     assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
@@ -119,10 +115,10 @@ def test_view_without_display_is_a_clear_error(
 ) -> None:
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    code, _, err = _run(["simulate", "-T", "1", "--view"], capsys)
+    code, _, err = run_cli(["simulate", "-T", "1", "--view"], capsys)
     assert code != 0 and "needs a display" in err and "--video" in err
     monkeypatch.setenv("DISPLAY", ":987")  # configured, but no such X server
-    code, out, err = _run(["simulate", "-T", "1", "--view"], capsys)
+    code, out, err = run_cli(["simulate", "-T", "1", "--view"], capsys)
     assert code != 0 and "cannot open the display ':987'" in err and "Traceback" not in err
     assert out == ""  # checked before simulating
 
@@ -155,7 +151,7 @@ def test_bad_input_is_a_clear_error(
     elif content is not None:
         path.write_text(json.dumps(content))
     flag = ["--states"] if not isinstance(content, dict) else []
-    code, out, err = _run(["simulate", *flag, str(path), *args], capsys)
+    code, out, err = run_cli(["simulate", *flag, str(path), *args], capsys)
     assert code != 0
     assert err.startswith("Error: ") and message in err
     assert "Traceback" not in err + out
@@ -165,22 +161,21 @@ def test_controller_and_states_together_is_an_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     path = _write(tmp_path, _states())
-    code, _, err = _run(["simulate", str(path), "--states", str(path)], capsys)
+    code, _, err = run_cli(["simulate", str(path), "--states", str(path)], capsys)
     assert code != 0 and "not both" in err
 
 
 def test_controller_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A bstool.controller/1 file runs through controllers.load_controller(...).states()."""
-    controllers = pytest.importorskip("bstool.controllers")
-    if not hasattr(controllers, "make_controller"):
-        pytest.skip("bstool.controllers has no make_controller yet")
+    from bstool import controllers
+
     rng = np.random.default_rng(2)
     ctrl = controllers.make_controller(
         "ca1d", rng.integers(0, 16, (5, 6)), rule=rng.integers(0, 16, 4096), max_trans=2
     )
     path = tmp_path / "best.json"
     controllers.save_controller(ctrl, path)
-    code, out, err = _run(["simulate", str(path), "--fail", "0.0", "--json"], capsys)
+    code, out, err = run_cli(["simulate", str(path), "--fail", "0.0", "--json"], capsys)
     assert code == 0, err
     obj = json.loads(out)
     states = controllers.load_controller(path).states(2, ["0.0"])
@@ -194,6 +189,6 @@ def test_states_from_stdin(
 
     states = _states(3, 1)
     monkeypatch.setattr("sys.stdin", io.StringIO(json.dumps(states)))
-    code, out, _ = _run(["simulate", "--states", "-", "--json"], capsys)
+    code, out, _ = run_cli(["simulate", "--states", "-", "--json"], capsys)
     assert code == 0
     assert json.loads(out)["path"] == Simulator().run(np.array(states)).path.tolist()

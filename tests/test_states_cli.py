@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
-from bstool.cli import main
 from bstool.controllers import make_controller, save_controller
 
 
@@ -22,14 +22,8 @@ def nn_file(tmp_path: Path) -> Path:
     return path
 
 
-def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(args)
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 def test_prints_frames(nn_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = run(["states", str(nn_file)], capsys)
+    code, out, _ = run_cli(["states", str(nn_file)], capsys)
     assert code == 0
     frames = json.loads(out)
     assert len(frames) == 6  # max_trans = 5 from the file
@@ -39,7 +33,7 @@ def test_prints_frames(nn_file: Path, capsys: pytest.CaptureFixture[str]) -> Non
 
 
 def test_transitions_and_failures(nn_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = run(
+    code, out, _ = run_cli(
         ["states", str(nn_file), "-T", "3", "--fail", "1.0", "--fail", "L2.M1"], capsys
     )
     assert code == 0
@@ -59,14 +53,14 @@ def test_transitions_and_failures(nn_file: Path, capsys: pytest.CaptureFixture[s
 def test_bad_arguments(
     nn_file: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
 ) -> None:
-    code, _, err = run(["states", str(nn_file), *args], capsys)
+    code, _, err = run_cli(["states", str(nn_file), *args], capsys)
     assert code == 2 and message in err and "Traceback" not in err
 
 
 def test_bad_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"format": "bstool.controller/1", "model": "nnsin"}))
-    code, _, err = run(["states", str(bad)], capsys)
+    code, _, err = run_cli(["states", str(bad)], capsys)
     assert code == 2 and "field 'legs': missing" in err and "Hint:" in err
-    code, _, err = run(["states", str(tmp_path / "none.json")], capsys)
+    code, _, err = run_cli(["states", str(tmp_path / "none.json")], capsys)
     assert code == 2 and "controller file not found" in err

@@ -9,12 +9,14 @@ for a byte on pin 0 (no timeout), takes it as its state, answers it, pulses its 
 from __future__ import annotations
 
 import itertools
-import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from conftest import CliRun, FakeModule, write_fake_build
 
+from bstool.buildfile import Wire
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from bstool.tokenizer import tokenize_source
@@ -55,35 +57,22 @@ Main:
 
 
 def make_build(tmp_path: Path) -> Path:
-    root = tmp_path / "build"
-    modules = []
+    fakes = []
     for j, src in enumerate((MASTER, SLAVE)):
         image = tokenize_source(src, f"m{j}.bsx").slots[0]
-        d = root / "modules" / f"L0.M{j}"
-        d.mkdir(parents=True)
-        (d / "slot0.eeprom").write_bytes(image.eeprom)
         variables = image.variables
-        modules.append(
-            {
-                "module": f"0.{j}",
-                "initial_state": 3 if j == 0 else 9,
-                "slots": [{"slot": 0, "eeprom": f"modules/L0.M{j}/slot0.eeprom"}],
-                "pins": [{"pin": 12, "use": "servo"}],
-                "servo": {"pulsout": [1042 + 111 * s for s in range(16)]},
-                "ram_map": {"state": list(variables["STATE"]), "tn": list(variables["TN"])},
-                "timing": {"longest_servo_gap_s": 0.03},
-            }
+        fakes.append(
+            FakeModule(
+                ModuleId(0, j),
+                {0: image.eeprom},
+                initial_state=3 if j == 0 else 9,
+                ram_map={"state": variables["STATE"], "tn": variables["TN"]},
+            )
         )
-    manifest = {
-        "format": "bstool.build/1",
-        "controller": {"hash8": "00000000"},
-        "robot": {"legs": 1, "modules": 2, "states": 16},
-        "period_s": 0.03,
-        "modules": modules,
-        "links": [{"master": "0.0", "master_pin": 1, "slave": "0.1", "slave_pin": 0}],
-    }
-    (root / "manifest.json").write_text(json.dumps(manifest))
-    return root
+    wire = Wire(ModuleId(0, 0), 1, ModuleId(0, 1), 0, colour=0, bypass=False)
+    return write_fake_build(
+        tmp_path / "build", fakes, legs=1, modules_per_leg=2, period=0.03, links=[wire]
+    )
 
 
 def test_bytes_reach_the_listening_neighbour(tmp_path: Path) -> None:
@@ -129,7 +118,7 @@ def test_servo_targets_follow_pulses_and_go_limp(tmp_path: Path) -> None:
     master, slave = twin.servos[ModuleId(0, 0)], twin.servos[ModuleId(0, 1)]
     assert master.pulses >= 3 and not master.limp
     # the last pulse was for the state it holds: 1042 + 111·s units maps back to θ(s)
-    s = twin.stamps[ModuleId(0, 0)].memory.nib(build.module(ModuleId(0, 0))["ram_map"]["state"][1])
+    s = twin.stamps[ModuleId(0, 0)].memory.nib(build.module(ModuleId(0, 0)).ram_map["state"][1])
     assert master.target == pytest.approx(-math.pi / 3 + s * (2 * math.pi / 3) / 15)
     # the slave pulsed once at start and then waits forever: limp after the threshold
     assert slave.pulses == 1 and slave.limp
@@ -176,3 +165,15 @@ def test_twin_cli_video_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "bad --cut" in capsys.readouterr().err
     assert main(["twin", str(build), "--cut", "0.1-0.1", "--no-physics", "-T", "1"]) == 2
     assert "no wire joins" in capsys.readouterr().err
+
+
+def test_twin_refuses_a_build_changed_after_compile(
+    tmp_path: Path, cli: Callable[..., CliRun]
+) -> None:
+    """Like `bstool flash`, the twin runs only images that match the manifest's sha256."""
+    build = make_build(tmp_path)
+    image = build / "modules" / "L0.M1" / "slot0.eeprom"
+    image.write_bytes(b"\x01" + image.read_bytes()[1:])
+    run = cli("twin", str(build), "-T", "1", "--no-physics", "-q")
+    assert run.code != 0
+    assert "differs from the manifest's sha256" in run.err and "bstool compile" in run.err

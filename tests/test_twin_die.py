@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import BuiltinBuild
 
-from bstool.builtin import builtin_controller
 from bstool.cli import main
-from bstool.compile import link
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
 from bstool.robot import state_to_angle
+from bstool.wire import link
 from hil_mock.robot import RobotTwin, load_build
 
 TRANSITIONS = 32
@@ -27,10 +27,8 @@ SWITCH_OVER = 1 + link.SILENT_TRANSITIONS  # transitions after the death until t
 
 
 @pytest.fixture(scope="module", params=["ca2ddiff", "nnsin"])
-def build(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp(request.param) / "build"
-    assert main(["compile", str(builtin_controller(request.param)), "-o", str(out)]) == 0
-    return out
+def build(request: pytest.FixtureRequest, builtin_build: BuiltinBuild) -> Path:
+    return builtin_build(request.param)
 
 
 @pytest.mark.slow
@@ -48,9 +46,7 @@ def test_a_module_dying_mid_run_equals_the_failed_at_reference(
     np.testing.assert_array_equal(got, ctrl.states(TRANSITIONS, failed_at={dying: at}))
     # its servo holds S^T (the last target it was given)
     held = int(got[at, dying.leg, dying.module])
-    assert twin.servos[dying].target == pytest.approx(
-        state_to_angle(held, b.manifest["robot"]["states"])
-    )
+    assert twin.servos[dying].target == pytest.approx(state_to_angle(held, b.manifest.robot.states))
     assert len(twin.records[dying].states) == at + 1
     # after the switch-over the period is back within 3 % (period i ends transition i + 2)
     after = [p for m, ps in result.periods.items() if m != dying for p in ps[at + SWITCH_OVER :]]

@@ -7,15 +7,14 @@ noise levels and seeds: docs/compile.md "Link noise".
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import BuiltinBuild
 
 from bstool.builtin import builtin_controller
-from bstool.cli import main
-from bstool.compile import link, timing
+from bstool.compile import timing
 from bstool.controllers import load_controller
+from bstool.wire import link
 from hil_mock.robot import RobotTwin, load_build
 
 TRANSITIONS = 30
@@ -24,11 +23,9 @@ SEED = 7
 
 
 @pytest.mark.parametrize("model", ["ca2ddiff", "nnsin"])
-def test_noisy_links_keep_the_states_exact(model: str, tmp_path: Path) -> None:
+def test_noisy_links_keep_the_states_exact(model: str, builtin_build: BuiltinBuild) -> None:
     source = builtin_controller(model)
-    out = tmp_path / "build"
-    assert main(["compile", str(source), "-o", str(out)]) == 0
-    build = load_build(out)
+    build = load_build(builtin_build(model))
     twin = RobotTwin(build, noise=NOISE, seed=SEED, physics=False)
     result = twin.run(TRANSITIONS)
     assert sum(twin.noise_events.values()) >= 5  # the noise really hit the links

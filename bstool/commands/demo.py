@@ -13,6 +13,7 @@ from pathlib import Path
 
 import click
 
+import hil_mock  # noqa: F401  (registers the twin's bstwin:// serial URL handler)
 from bstool.builtin import DEFAULT_MODEL, MODELS, builtin_controller
 
 
@@ -60,7 +61,7 @@ def command(
         build_dir = Path(out) if out else Path(tmp) / "build"
         ok = _demo(source, build_dir, transitions, failed, quiet)
     if not ok:
-        sys.exit(1)
+        click.get_current_context().exit(1)
 
 
 def _demo(
@@ -68,12 +69,11 @@ def _demo(
 ) -> bool:
     from tqdm import tqdm
 
+    from bstool import buildfile
     from bstool.compile import compile_controller
     from bstool.controllers import load_controller
     from bstool.moduleid import parse_module
-    from hil_mock.check import check, reference_simulator
-    from hil_mock.fleet import flash_fleet, make_fleet
-    from hil_mock.robot import RobotTwin, load_build
+    from hil_mock.session import TwinOptions, run_twin
 
     say = click.echo
     ctrl = load_controller(source)
@@ -83,36 +83,25 @@ def _demo(
 
     t0 = time.perf_counter()
     result = compile_controller(source, build_dir)
-    slots = sum(len(m["slots"]) for m in result.manifest["modules"])
-    say(f"compile      {len(result.manifest['modules'])} PBASIC programs, {slots} slots "
+    slots = sum(len(m.slots) for m in result.manifest.modules)
+    say(f"compile      {len(result.manifest.modules)} PBASIC programs, {slots} slots "
         f"tokenized ({time.perf_counter() - t0:.1f} s) -> {build_dir}")  # fmt: skip
 
-    build = load_build(build_dir)
-    fleet = make_fleet(build.legs, build.modules, name="demo")
-    try:
-        t0 = time.perf_counter()
-        with tqdm(total=len(fleet.urls), unit="module", desc="flash", disable=quiet or None,
-                  file=sys.stderr) as bar:  # fmt: skip
-            status = flash_fleet(build_dir, fleet)
-            bar.update(len(fleet.urls))
-        flashed = sum(1 for s in status.values() if s == "flashed")
-        say(f"flash        {flashed}/{len(status)} twins programmed over the serial protocol "
-            f"({time.perf_counter() - t0:.1f} s)")  # fmt: skip
-        twin = RobotTwin(build, eeproms=dict(fleet.eeproms), failed=fail_ids)
-        t0 = time.perf_counter()
-        with tqdm(total=transitions + 1, unit="transition", desc="twin", disable=quiet or None,
-                  file=sys.stderr) as bar:  # fmt: skip
-            run = twin.run(transitions, progress=bar.update)
-        wall = time.perf_counter() - t0
-    finally:
-        fleet.close()
-
-    reference = ctrl.states(transitions, failed=fail_ids)
-    sim = reference_simulator(build).run(reference)
-    rep = check(build, run, reference, transitions, sim.distance)
+    build = buildfile.load(build_dir)
+    with tqdm(total=transitions + 1, unit="transition", desc="twin", disable=quiet or None,
+              file=sys.stderr) as bar:  # fmt: skip
+        options = TwinOptions(transitions=transitions, failed=fail_ids, via_flash=True,
+                              fleet_name="demo", controller=ctrl, progress=bar.update)  # fmt: skip
+        report = run_twin(build, options)
+    status = report.flash_status or {}
+    flashed = sum(1 for s in status.values() if s == "flashed")
+    say(f"flash        {flashed}/{len(status)} twins programmed over the serial protocol "
+        f"({report.flash_seconds:.1f} s)")  # fmt: skip
+    run, rep = report.result, report.check
+    sim_distance = report.sim_distance if report.sim_distance is not None else float("nan")
     say("")
     say(f"{'':26}{'simulator':>14}{'twin (stamps)':>18}")
-    say(f"{'distance (cm)':26}{sim.distance * 100:14.2f}{run.distance * 100:18.2f}")
+    say(f"{'distance (cm)':26}{sim_distance * 100:14.2f}{run.distance * 100:18.2f}")
     states_text = "equal" if rep.states_equal else f"{len(rep.mismatched)} modules differ"
     say(f"{'states, ' + str(transitions) + ' transitions':26}{'reference':>14}{states_text:>18}")
     say(f"{'transition period (s)':26}{build.period:14.3f}"
@@ -121,7 +110,7 @@ def _demo(
         f"{rep.servo_gap_max * 1000:18.1f}")  # fmt: skip
     announced = "all correct" if rep.announcements_ok else "WRONG"
     say(f"{'start-up announcements':26}{'':14}{announced:>18}")
-    say(f"{'twin speed':26}{'':14}{run.virtual_seconds / wall:15.1f}× real time")
+    say(f"{'twin speed':26}{'':14}{run.virtual_seconds / report.twin_seconds:15.1f}× real time")
     if rep.first_mismatch:
         say(f"first difference: {rep.first_mismatch}")
     say("")

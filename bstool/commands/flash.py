@@ -11,6 +11,7 @@ from typing import Any
 import click
 from tqdm import tqdm
 
+import hil_mock  # noqa: F401  (registers bstwin://, the twin's serial URLs)
 from bstool.errors import DeviceError, InputError
 from bstool.flash import protocol as P
 from bstool.flash.flasher import ModuleReport, flash_all, flash_module, read_ports_file

@@ -227,13 +227,7 @@ def _from_controller(
             f"{path}: expected a controller (JSON object) or a states file (JSON list),"
             f" got {type(data).__name__}"
         )
-    try:
-        from bstool.controllers import load_controller
-    except ImportError:
-        raise InputError(
-            f"{path}: controller files need bstool.controllers, which this install lacks",
-            hint="simulate a states file instead: bstool simulate --states FILE",
-        ) from None
+    from bstool.controllers import load_controller
     from bstool.sim.states import validate_states
 
     ctrl = load_controller(path)

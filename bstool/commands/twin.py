@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
+import hil_mock  # noqa: F401  (registers the twin's bstwin:// serial URL handler)
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_failure_time, parse_module
+
+if TYPE_CHECKING:
+    from bstool.controllers import Controller
+    from hil_mock.check import TwinCheck
+    from hil_mock.twin_result import TwinResult
 
 
 @click.command("twin")
@@ -101,43 +107,34 @@ def command(
         from bstool.sim.gl import configure_headless_gl
 
         configure_headless_gl()  # before mujoco is imported
-    from hil_mock.robot import RobotTwin, load_build
+    from tqdm import tqdm
 
-    b = load_build(build)
+    from bstool import buildfile
+    from hil_mock.session import TwinOptions, run_twin
+
+    b = buildfile.load(build)  # refuses a build whose images differ from the manifest
     fail_ids = [parse_module(f, b.legs, b.modules) for f in failed]
     die_at = dict(parse_failure_time(d, b.legs, b.modules) for d in die)
     cuts = [_parse_cut(c, b.legs, b.modules) for c in cut]
-    ctrl = _controller(b.root, controller)
-    eeproms = None
-    fleet = None
-    if via_flash:
-        from hil_mock.fleet import flash_fleet, make_fleet
-
-        fleet = make_fleet(b.legs, b.modules)
-        status = flash_fleet(b.root, fleet)
-        bad = {k: v for k, v in status.items() if v != "flashed"}
-        if bad:
-            raise InputError(f"flashing the twins failed: {bad}")
-        eeproms = dict(fleet.eeproms)
-    try:
-        twin = RobotTwin(b, eeproms=eeproms, failed=fail_ids, die=die_at, limp_failed=limp_failed,
-                         cut=cuts, noise=link_noise, seed=seed, physics=not no_physics)  # fmt: skip
-        result = _run(twin, transitions, quiet or as_json, video, timeout_s)
-    finally:
-        if fleet is not None:
-            fleet.close()
-    reference = (
-        ctrl.states(transitions, failed=fail_ids, failed_at=die_at) if ctrl is not None else None
-    )
-    sim_distance = None
-    if ctrl is not None and not no_physics:
-        from hil_mock.check import reference_simulator
-
-        assert reference is not None
-        sim_distance = reference_simulator(b).run(reference).distance
-    from hil_mock.check import check
-
-    report = check(b, result, reference, transitions, sim_distance)
+    with tqdm(total=transitions + 1, unit="transition", disable=quiet or as_json or None,
+              desc="twin", file=sys.stderr) as bar:  # fmt: skip
+        options = TwinOptions(
+            transitions=transitions,
+            failed=fail_ids,
+            die=die_at,
+            limp_failed=limp_failed,
+            cut=cuts,
+            noise=link_noise,
+            seed=seed,
+            physics=not no_physics,
+            via_flash=via_flash,
+            controller=_controller(controller),
+            timeout_s=timeout_s,
+            video=video,
+            progress=bar.update,
+        )
+        run = run_twin(b, options)
+    report, result = run.check, run.result
     if as_json:
         out = report.to_json()
         out["states"] = result.state_array(b.legs, b.modules, transitions).tolist()
@@ -147,42 +144,15 @@ def command(
         click.echo(json.dumps(out))
     else:
         _print(report, result)
-    if reference is not None and not report.states_equal:
-        sys.exit(1)
+    if not run.ok:
+        click.get_current_context().exit(1)
 
 
-def _run(twin, transitions: int, quiet: bool, video: str | None, timeout_s: float | None):
-    from tqdm import tqdm
-
-    with tqdm(total=transitions + 1, unit="transition", disable=quiet or None,
-              desc="twin", file=sys.stderr) as bar:  # fmt: skip
-        if not video:
-            return twin.run(transitions, progress=bar.update, timeout_s=timeout_s)
-        from bstool.sim.video import VideoRecorder
-        from hil_mock.robot import CHUNK_STEPS, RobotTwin
-
-        model = twin.sim.model
-        with VideoRecorder(model, video) as rec:
-            every = max(1, round(rec.steps_per_frame(model) / CHUNK_STEPS))
-            chunks = [0]
-
-            def on_chunk(t: RobotTwin) -> None:
-                chunks[0] += 1
-                if chunks[0] % every == 0 and t.sim is not None:
-                    rec.frame(t.sim.data)
-
-            return twin.run(
-                transitions, progress=bar.update, on_chunk=on_chunk, timeout_s=timeout_s
-            )
-
-
-def _controller(root: Path, given: str | None):
+def _controller(given: str | None) -> Controller | None:
+    """``--controller``; without it the twin compares with the build's controller.json."""
     from bstool.controllers import load_controller
 
-    if given:
-        return load_controller(given)
-    default = root / "controller.json"
-    return load_controller(default) if default.is_file() else None
+    return load_controller(given) if given else None
 
 
 def _parse_cut(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId]:
@@ -192,7 +162,7 @@ def _parse_cut(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId]:
     return parse_module(parts[0], legs, modules), parse_module(parts[1], legs, modules)
 
 
-def _print(report, result) -> None:
+def _print(report: TwinCheck, result: TwinResult) -> None:
     T = report.transitions
     if report.sim_distance is not None or report.mismatched or report.states_equal:
         verdict = "EQUAL to" if report.states_equal else "DIFFERENT from"

@@ -6,46 +6,27 @@ import hashlib
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
 
-from bstool import fileio
+from bstool import buildfile, fileio
 from bstool.compile import describe
 from bstool.compile.calibration import DEFAULT, Calibration, load_calibration
 from bstool.compile.plan import ModulePlan, build_plans, estimates, exchange_ms
 from bstool.compile.render import render_module
+from bstool.compile.results import ModuleResult, SlotResult
 from bstool.compile.wiring import wiring as wiring_md
 from bstool.controllers import Controller, controller_hash, load_controller
 from bstool.errors import BstoolError, BuildError, InputError, SourceError
 from bstool.moduleid import ModuleId, parse_module
+from bstool.tokenizer import Project, tokenize_source
 
-SLOT_BYTES = 2048
-RAM_BYTES = 26
-
-
-@dataclass
-class SlotResult:
-    slot: int
-    file: str
-    source_sha256: str
-    program_bytes: int | None = None
-    data_bytes: int | None = None
-    eeprom: bytes | None = None
-    packets: bytes | None = None
-
-
-@dataclass
-class ModuleResult:
-    plan: ModulePlan
-    sources: dict[str, str]
-    slots: list[SlotResult]
-    ram_bytes: int
-    timing: dict[str, float]
-    ram_map: dict[str, list[object]] | None = None  # STATE/TN location (twin's state probe)
+SLOT_BYTES = buildfile.SLOT_BYTES
+RAM_BYTES = describe.RAM_BYTES
 
 
 @dataclass
@@ -54,7 +35,7 @@ class BuildResult:
     controller_hash: str
     modules: list[ModuleResult]
     tokenized: bool
-    manifest: dict[str, Any]
+    manifest: buildfile.Manifest
 
 
 def default_period(legs: int, modules: int) -> float:
@@ -62,16 +43,6 @@ def default_period(legs: int, modules: int) -> float:
     from bstool.robot import RobotSpec
 
     return float(RobotSpec(legs=legs, modules=modules).transition_time)
-
-
-def _tokenizer() -> Callable[[str | os.PathLike[str]], Any] | None:
-    """The project's tokenizer, if it has landed (imported lazily)."""
-    try:
-        from bstool import tokenizer
-    except ImportError:  # pragma: no cover
-        return None
-    fn = getattr(tokenizer, "tokenize_file", None)
-    return fn if callable(fn) else None
 
 
 def ram_estimate(plan: ModulePlan) -> int:
@@ -91,7 +62,10 @@ def compile_controller(
     tokenize: bool = True,
     progress: bool = False,
 ) -> BuildResult:
-    """Compile ``controller`` into ``out_dir`` (replaced as a whole, never half-written)."""
+    """Compile ``controller`` into ``out_dir`` (replaced as a whole, never half-written).
+
+    ``tokenize=False`` writes the PBASIC sources only (no slot images: flash and the twin
+    refuse such a build); the golden tests use it."""
     ctrl = load_controller(controller)
     return compile_loaded(
         ctrl,
@@ -136,45 +110,39 @@ def compile_loaded(
                 hint=f"this controller's robot has modules 0.0 .. "
                 f"{ctrl.legs - 1}.{ctrl.modules - 1}",
             ) from None
-    plans = build_plans(ctrl, calib, period, full_hash[:8], only or None)
-    exchange = exchange_ms(build_plans(ctrl, calib, period, full_hash[:8]))
+    every = build_plans(ctrl, calib, period, full_hash[:8])
+    exchange = exchange_ms(every)
+    plans = [p for p in every if not only or p.mid in only]
     if exchange / 1000 > period * 0.8:
         raise BuildError(
             f"a period of {period:g} s is too short for {ctrl.model}: exchanging states "
             f"between neighbours takes about {exchange / 1000:.3f} s per transition",
             hint=f"use --period {exchange / 800:.2f} or more",
         )
-    tokenizer = _tokenizer() if tokenize else None
     results = [
-        _module(plan, estimates(plan, exchange), tokenizer)
+        _module(plan, estimates(plan, exchange), tokenize)
         for plan in tqdm(plans, desc="compile", unit="module", disable=not progress, leave=False)
     ]
-    manifest = describe.manifest(
-        ctrl, source_name, full_hash, period, results, tokenizer is not None
-    )
+    manifest = describe.manifest(ctrl, source_name, full_hash, period, results, tokenize)
     wiring = wiring_md(ctrl, full_hash, results)
     _write_atomically(out, results, manifest, wiring, ctrl.to_json())
-    return BuildResult(out, full_hash, results, tokenizer is not None, manifest)
+    return BuildResult(out, full_hash, results, tokenize, manifest)
 
 
 def _sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def _module(
-    plan: ModulePlan,
-    timing: dict[str, float],
-    tokenizer: Callable[[str | os.PathLike[str]], Any] | None,
-) -> ModuleResult:
+def _module(plan: ModulePlan, timing: dict[str, float], tokenize: bool) -> ModuleResult:
     sources = render_module(plan)
     slots = [
         SlotResult(slot, name, _sha(sources[name].encode()))
         for slot, name in enumerate(plan.slot_files)
     ]
     ram = ram_estimate(plan)
-    ram_map: dict[str, list[object]] | None = None
-    if tokenizer is not None:
-        project = _tokenize(plan, sources, tokenizer)
+    ram_map: dict[str, tuple[str, int]] | None = None
+    if tokenize:
+        project = _tokenize(plan, sources)
         for sr in slots:
             image = project.slots[sr.slot]
             sr.program_bytes = int(image.program_bytes)
@@ -183,10 +151,10 @@ def _module(
             sr.packets = b"".join(bytes(r) for r in image.records)
             if sr.program_bytes + sr.data_bytes > SLOT_BYTES:  # pragma: no cover - tokenizer checks
                 raise _too_big(plan, sr.slot, sr.program_bytes + sr.data_bytes - SLOT_BYTES)
-        ram = max(int(getattr(project.slots[0], "variables_used", ram)), ram)
-        variables = getattr(project.slots[0], "variables", {})
+        ram = max(project.slots[0].variables_used, ram)
+        variables = project.slots[0].variables
         ram_map = {
-            name.lower(): list(variables[name.upper()])
+            name.lower(): variables[name.upper()]
             for name in ("state", "tn")
             if name.upper() in variables
         }
@@ -211,51 +179,47 @@ def _too_big(plan: ModulePlan, slot: int, over: int) -> BuildError:
     )
 
 
-def _tokenize(
-    plan: ModulePlan, sources: dict[str, str], tokenizer: Callable[[str | os.PathLike[str]], Any]
-) -> Any:
-    with tempfile.TemporaryDirectory(prefix="bstool-tok-") as tmp:
-        for name, text in sources.items():
-            (Path(tmp) / name).write_text(text, encoding="utf-8")
-        try:
-            return tokenizer(Path(tmp) / "main.bsx")
-        except SourceError as exc:
-            slot = plan.slot_files.index(Path(exc.file).name) if exc.file else 0
-            if exc.code == 124:  # data overlaps program: measure the program alone
-                over = _overflow(plan, slot, sources, tokenizer)
-                raise _too_big(plan, slot, over) from None
-            raise BuildError(
-                f"{plan.label}: generated PBASIC does not tokenize: {exc}",
-                hint="this is a bstool bug in templates/pbasic; please report it with the "
-                "controller file",
-            ) from None
+def _tokenize_sources(sources: dict[str, str]) -> Project:
+    """Tokenize a module's project in memory (main.bsx and the slot files it names)."""
+    return tokenize_source(sources["main.bsx"], "main.bsx", files=sources)
 
 
-def _overflow(
-    plan: ModulePlan,
-    slot: int,
-    sources: dict[str, str],
-    tokenizer: Callable[[str | os.PathLike[str]], Any],
-) -> int:
-    probe = render_module(plan, probe=True)
-    with tempfile.TemporaryDirectory(prefix="bstool-probe-") as tmp:
-        for name, text in probe.items():
-            (Path(tmp) / name).write_text(text, encoding="utf-8")
-        try:
-            image = tokenizer(Path(tmp) / "main.bsx").slots[slot]
-        except BstoolError:  # pragma: no cover - cannot measure
-            return 0
+def _tokenize(plan: ModulePlan, sources: dict[str, str]) -> Project:
+    try:
+        return _tokenize_sources(sources)
+    except SourceError as exc:
+        slot = plan.slot_files.index(Path(exc.file).name) if exc.file else 0
+        if exc.code == 124:  # data overlaps program: measure the program alone
+            raise _too_big(plan, slot, _overflow(plan, slot)) from None
+        raise BuildError(
+            f"{plan.label}: generated PBASIC does not tokenize: {exc}",
+            hint="this is a bstool bug in templates/pbasic; please report it with the "
+            "controller file",
+        ) from None
+
+
+def _overflow(plan: ModulePlan, slot: int) -> int:
+    try:
+        image = _tokenize_sources(render_module(plan, probe=True)).slots[slot]
+    except BstoolError:  # pragma: no cover - cannot measure
+        return 0
     data = len(plan.rule_slots[slot - 1]) if slot else int(image.data_bytes)
     return max(0, int(image.program_bytes) + data - SLOT_BYTES)
 
 
 def _check_output(out: Path) -> None:
-    """Refuse to replace anything but a previous build (checked before any work)."""
+    """Refuse to replace anything but a previous build (checked before any work): a folder is
+    a build when its manifest.json says so (format bstool.build/...), not because it has one."""
     if out.exists() and not out.is_dir():
         raise InputError(f"output {out} exists and is not a folder", hint="choose another -o")
-    if out.is_dir() and any(out.iterdir()) and not (out / "manifest.json").is_file():
+    if out.is_dir() and any(out.iterdir()) and not buildfile.is_build(out):
+        has = (
+            "a manifest.json that is not a bstool build's"
+            if (out / buildfile.MANIFEST_FILE).exists()
+            else "no bstool build (no manifest.json)"
+        )
         raise InputError(
-            f"output folder {out} is not empty and holds no bstool build (no manifest.json)",
+            f"output folder {out} is not empty and holds {has}",
             hint="choose an empty or new folder with -o; bstool replaces only its own builds",
         )
 
@@ -263,7 +227,7 @@ def _check_output(out: Path) -> None:
 def _write_atomically(
     out: Path,
     results: list[ModuleResult],
-    manifest: dict[str, Any],
+    manifest: buildfile.Manifest,
     wiring: str,
     controller: dict[str, Any],
 ) -> None:
@@ -282,9 +246,9 @@ def _write_atomically(
                 if sr.eeprom is not None and sr.packets is not None:
                     (folder / f"slot{sr.slot}.eeprom").write_bytes(sr.eeprom)
                     (folder / f"slot{sr.slot}.packets").write_bytes(sr.packets)
-        fileio.write_text(tmp / "manifest.json", describe.dumps(manifest))
-        fileio.write_text(tmp / "WIRING.md", wiring)
-        fileio.write_text(tmp / describe.CONTROLLER_FILE, describe.dumps(controller))
+        fileio.write_text(tmp / buildfile.MANIFEST_FILE, buildfile.dumps(manifest))
+        fileio.write_text(tmp / buildfile.WIRING_FILE, wiring)
+        fileio.write_text(tmp / buildfile.CONTROLLER_FILE, buildfile.dumps_json(controller))
         old = None
         if out.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=parent))

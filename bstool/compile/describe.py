@@ -1,38 +1,85 @@
-"""The build's descriptions: manifest.json (bstool.build/1) and WIRING.md (the harness)."""
+"""The build's descriptions: its manifest (bstool.buildfile, bstool.build/1) and WIRING.md."""
 
 from __future__ import annotations
 
-import json
-import re
-from typing import TYPE_CHECKING, Any
+import hashlib
 
-from bstool.compile import link
+from bstool import buildfile as bf
+from bstool.compile.results import ModuleResult, SlotResult
 from bstool.compile.timing import PAD_PIN
 from bstool.compile.topology import SERVO_PIN, links, pin_role
 from bstool.controllers import Controller
+from bstool.wire import announce, link
 
-if TYPE_CHECKING:
-    from bstool.compile.build import ModuleResult
-
-FORMAT = "bstool.build/1"
-CONTROLLER_FILE = "controller.json"
-"""The compiled controller, copied into the build: `bstool twin BUILD` compares with it."""
-
-
-_SCALAR_LIST = re.compile(r"\[\s*([^\[\]{}]*?)\s*\]", re.S)
-
-
-def dumps(obj: Any) -> str:
-    """JSON with one field per line but lists of numbers on one line (short, diff-friendly)."""
-    text = json.dumps(obj, indent=1)
-    return (
-        _SCALAR_LIST.sub(lambda mt: "[" + re.sub(r"\s*\n\s*", " ", mt.group(1)) + "]", text) + "\n"
-    )
+RAM_BYTES = 26
 
 
 def _flash_slots(res: ModuleResult) -> list[int]:
     """Rule slots first, slot 0 last: slot 0 starts running as soon as it is written."""
     return [*(s.slot for s in reversed(res.slots[1:])), 0]
+
+
+def _slot(d: str, sr: SlotResult) -> bf.Slot:
+    if sr.eeprom is None:
+        return bf.Slot(sr.slot, f"{d}/{sr.file}", sr.source_sha256, sr.program_bytes, sr.data_bytes)
+    return bf.Slot(
+        sr.slot,
+        f"{d}/{sr.file}",
+        sr.source_sha256,
+        sr.program_bytes,
+        sr.data_bytes,
+        eeprom=f"{d}/slot{sr.slot}.eeprom",
+        packets=f"{d}/slot{sr.slot}.packets",
+        sha256=hashlib.sha256(sr.eeprom).hexdigest(),
+    )
+
+
+def _module(ctrl: Controller, res: ModuleResult) -> bf.Module:
+    p = res.plan
+    d = f"modules/{p.dirname}"
+    pins = [bf.Pin(SERVO_PIN, "servo"), bf.Pin(PAD_PIN, "pad")]
+    for ll in p.links:
+        pins.append(
+            bf.Pin(
+                pin=ll.pin,
+                use="link",
+                port=pin_role(ctrl.model, ctrl.legs, ctrl.modules, p.mid, ll.peer),
+                neighbour=ll.peer,
+                neighbour_pin=ll.link.pin(ll.peer),
+                role="master" if ll.master else "slave",
+                colour=ll.link.colour,
+                deadline_ms=ll.deadline,
+                first_deadline_ms=ll.first_deadline,
+                miss_iteration_ms=ll.iter_ms,
+                ok_iteration_ms=ll.ok_ms,
+                recover_ms=None if ll.master else ll.recover_ms,
+                bypass=ll.link.bypass,
+                send_states=len(ll.send),
+                receive_states=len(ll.store),
+                wait_base_units=ll.wait_units,
+            )
+        )
+    return bf.Module(
+        module=p.mid,
+        label=p.label,
+        dir=d,
+        entry=f"{d}/main.bsx",
+        initial_state=p.r0,
+        slots=[_slot(d, sr) for sr in res.slots],
+        ram_bytes=res.ram_bytes,
+        ram_bytes_available=RAM_BYTES,
+        pins=pins,
+        servo=bf.ServoTable(list(p.pulses), list(p.clipped)),
+        transition_ms=p.hold_ms,
+        exchange_allowance_ms=p.exch_ms,
+        free_exchange_ms=p.free_ms,
+        hold_step_ms=p.hold_step,
+        hold_pause_ms=p.hold_pause,
+        pad_base=p.pad_base,
+        roll_call_ms=p.roll_ms,
+        timing=bf.Timing(**res.timing),
+        ram_map=res.ram_map or None,
+    )
 
 
 def manifest(
@@ -42,116 +89,41 @@ def manifest(
     period: float,
     results: list[ModuleResult],
     tokenized: bool,
-) -> dict[str, Any]:
-    mods = []
-    for res in results:
-        p = res.plan
-        d = f"modules/{p.dirname}"
-        slots = []
-        for sr in res.slots:
-            entry: dict[str, Any] = {
-                "slot": sr.slot,
-                "file": f"{d}/{sr.file}",
-                "source_sha256": sr.source_sha256,
-                "program_bytes": sr.program_bytes,
-                "data_bytes": sr.data_bytes,
-            }
-            if sr.eeprom is not None:
-                import hashlib
-
-                entry["eeprom"] = f"{d}/slot{sr.slot}.eeprom"
-                entry["packets"] = f"{d}/slot{sr.slot}.packets"
-                entry["sha256"] = hashlib.sha256(sr.eeprom).hexdigest()
-            slots.append(entry)
-        pins: list[dict[str, Any]] = [
-            {"pin": SERVO_PIN, "use": "servo"},
-            {"pin": PAD_PIN, "use": "pad"},
-        ]
-        for ll in p.links:
-            pins.append(
-                {
-                    "pin": ll.pin,
-                    "use": "link",
-                    "port": pin_role(ctrl.model, ctrl.legs, ctrl.modules, p.mid, ll.peer),
-                    "neighbour": str(ll.peer),
-                    "neighbour_pin": ll.link.pin(ll.peer),
-                    "role": "master" if ll.master else "slave",
-                    "colour": ll.link.colour,
-                    "deadline_ms": ll.deadline,
-                    "first_deadline_ms": ll.first_deadline,
-                    "miss_iteration_ms": ll.iter_ms,
-                    "ok_iteration_ms": ll.ok_ms,
-                    **({} if ll.master else {"recover_ms": ll.recover_ms}),
-                    **({"bypass": True} if ll.link.bypass else {}),
-                    "send_states": len(ll.send),
-                    "receive_states": len(ll.store),
-                    "wait_base_units": ll.wait_units,
-                }
-            )
-        mods.append(
-            {
-                "module": str(p.mid),
-                "label": p.label,
-                "dir": d,
-                "entry": f"{d}/main.bsx",
-                "initial_state": p.r0,
-                "slots": slots,
-                "ram_bytes": res.ram_bytes,
-                "ram_bytes_available": 26,
-                "pins": pins,
-                "servo": {"pulsout": p.pulses, "clipped_states": p.clipped},
-                "transition_ms": p.hold_ms,
-                "exchange_allowance_ms": p.exch_ms,
-                "free_exchange_ms": p.free_ms,
-                "hold_step_ms": p.hold_step,
-                "hold_pause_ms": p.hold_pause,
-                "pad_base": p.pad_base,
-                "roll_call_ms": p.roll_ms,
-                "timing": res.timing,
-                **({"ram_map": res.ram_map} if res.ram_map else {}),
-            }
-        )
+) -> bf.Manifest:
+    """The build's manifest (bstool.build/1) for ``results``."""
     wires = [
-        {
-            "master": str(lk.master),
-            "master_pin": lk.master_pin,
-            "slave": str(lk.slave),
-            "slave_pin": lk.slave_pin,
-            "colour": lk.colour,
-            "bypass": lk.bypass,
-        }
+        bf.Wire(lk.master, lk.master_pin, lk.slave, lk.slave_pin, lk.colour, lk.bypass)
         for lk in links(ctrl.model, ctrl.legs, ctrl.modules)
     ]
     order = [
-        {"module": str(res.plan.mid), "slots": _flash_slots(res)}
+        bf.FlashStep(res.plan.mid, _flash_slots(res))
         for res in sorted(results, key=lambda r: r.plan.mid)
     ]
-    return {
-        "format": FORMAT,
-        "controller": {
-            "file": source,
-            "copy": CONTROLLER_FILE,
-            "hash": full_hash,
-            "hash8": full_hash[:8],
-            "model": ctrl.model,
-        },
-        "robot": {"legs": ctrl.legs, "modules": ctrl.modules, "states": ctrl.k},
-        "period_s": period,
-        "tokenized": tokenized,
-        "link": {
-            "protocol": "protocol/link.md",
-            "baud": link.BAUD,
-            "baudmode": link.BAUDMODE,
-            "request_base": link.REQUEST_BASE,
-            "reply_base": link.REPLY_BASE,
-            "reply_base_units": link.REPLY_BASE_UNITS,
-            "recover_units": link.RECOVER_UNITS,
-            "linger_units": link.LINGER_UNITS,
-            "linger_listens": link.LINGER_LISTENS,
-            "silent_transitions": link.SILENT_TRANSITIONS,
-        },
-        "announcement": "bstool L<leg>.M<module> <hash8>\\r on DEBUG (pin 16, 9600 baud)",
-        "modules": mods,
-        "links": wires,
-        "flash_order": order,
-    }
+    return bf.Manifest(
+        controller=bf.ControllerInfo(
+            file=source,
+            copy=bf.CONTROLLER_FILE,
+            hash=full_hash,
+            hash8=full_hash[:8],
+            model=ctrl.model,
+        ),
+        robot=bf.RobotSize(ctrl.legs, ctrl.modules, ctrl.k),
+        period_s=period,
+        tokenized=tokenized,
+        link=bf.LinkSettings(
+            protocol="protocol/link.md",
+            baud=link.BAUD,
+            baudmode=link.BAUDMODE,
+            request_base=link.REQUEST_BASE,
+            reply_base=link.REPLY_BASE,
+            reply_base_units=link.REPLY_BASE_UNITS,
+            recover_units=link.RECOVER_UNITS,
+            linger_units=link.LINGER_UNITS,
+            linger_listens=link.LINGER_LISTENS,
+            silent_transitions=link.SILENT_TRANSITIONS,
+        ),
+        announcement=announce.DESCRIPTION,
+        modules=[_module(ctrl, res) for res in results],
+        links=wires,
+        flash_order=order,
+    )

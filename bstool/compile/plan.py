@@ -11,11 +11,12 @@ from dataclasses import dataclass, field
 
 from bstool.compile import tables, timing
 from bstool.compile.calibration import Calibration
-from bstool.compile.link import REPLY_BASE_UNITS
 from bstool.compile.topology import Link, links, module_links, pin_role, reads
 from bstool.controllers import CA_MODELS, Controller
 from bstool.errors import BuildError
 from bstool.moduleid import ModuleId, all_modules
+from bstool.wire import announce
+from bstool.wire.link import REPLY_BASE_UNITS
 
 PORT_NAMES = {
     "prev": "LinkPrev",
@@ -87,6 +88,11 @@ class ModulePlan:
     @property
     def label(self) -> str:
         return self.mid.label
+
+    @property
+    def announcement(self) -> str:
+        """The start-up line the program sends on DEBUG (bstool.wire.announce)."""
+        return announce.line(self.mid, self.hash8)
 
     @property
     def dirname(self) -> str:

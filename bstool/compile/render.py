@@ -10,10 +10,11 @@ from pathlib import Path
 
 import jinja2
 
-from bstool.compile import link, tables, timing
+from bstool.compile import tables, timing
 from bstool.compile.plan import ModulePlan
 from bstool.compile.topology import SERVO_PIN
 from bstool.errors import BuildError
+from bstool.wire import link
 
 TEMPLATES = {"ca": ("ca_main.bsx.j2", "ca_rules.bsx.j2"), "nn": ("nn_main.bsx.j2", None)}
 

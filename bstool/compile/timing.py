@@ -14,7 +14,7 @@ give-up deadlines in order.
 
 from __future__ import annotations
 
-from bstool.compile.link import (
+from bstool.wire.link import (
     LINGER_LISTENS,
     LINGER_UNITS,
     RECOVER_UNITS,

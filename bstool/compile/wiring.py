@@ -8,16 +8,17 @@ from typing import TYPE_CHECKING
 
 import jinja2
 
+from bstool.compile.timing import PAD_PIN
 from bstool.compile.topology import PORTS, SERVO_PIN, Link, links, pin_role
 from bstool.controllers import NN_MODELS
 from bstool.moduleid import ModuleId
 from bstool.robot import RobotSpec
+from bstool.wire import announce
 
 if TYPE_CHECKING:
-    from bstool.compile.build import ModuleResult
+    from bstool.compile.results import ModuleResult
     from bstool.controllers import Controller
 
-PAD_PIN = 13
 BAUD_DEBUG = 240  # BS2sx baudmode of 9600 baud, true polarity (bs2sx.md: SERIN/SEROUT)
 
 
@@ -78,6 +79,7 @@ def wiring(ctrl: Controller, full_hash: str, results: list[ModuleResult]) -> str
     first = ordered[0].plan.mid if ordered else ModuleId(0, 0)
     context = {
         "hash8": full_hash[:8],
+        "announcement": announce.generic(full_hash[:8]),
         "model": ctrl.model,
         "nn": ctrl.model in NN_MODELS,
         "legs": ctrl.legs,

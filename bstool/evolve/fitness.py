@@ -22,8 +22,6 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from bstool.errors import InputError
-
 Sequences = npt.NDArray[np.uint8]
 Evaluator = Callable[[Sequence[np.ndarray]], Sequence[float]]
 
@@ -123,14 +121,9 @@ class PhysicsFitness:
     workers: int = 1
 
     def build(self) -> Evaluator:
-        try:
-            from bstool.robot import RobotSpec
-            from bstool.sim import batch
-        except ImportError as exc:
-            raise InputError(
-                f"the physics evaluator is not available: {exc}",
-                hint="use --fitness toy to try the pipeline without physics",
-            ) from None
+        from bstool.robot import RobotSpec
+        from bstool.sim import batch  # mujoco: imported only when physics is used
+
         spec = RobotSpec(legs=self.legs, modules=self.modules)
         return PhysicsEvaluator(batch.BatchEvaluator(spec, workers=self.workers))
 

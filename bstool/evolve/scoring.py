@@ -21,11 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from bstool.controllers.rotation import rotate_states
 from bstool.errors import InputError
 from bstool.evolve.fitness import Evaluator, FitnessCache
 from bstool.evolve.ga import Bits, best_index, clean_fitness, roulette
 from bstool.evolve.problem import Problem
-from bstool.experiments.rotation import rotate_states
 
 Floats = npt.NDArray[np.float64]
 Parasites = npt.NDArray[np.int16]  # (Q, K_max) module indices leg·m + module, −1 = unused

@@ -16,12 +16,12 @@ import serial
 
 from bstool import fileio
 from bstool.errors import BstoolError, DeviceError
-from bstool.flash import protocol as P
 from bstool.flash.errors import AnnouncementError, FlashInterrupted, PortError
 from bstool.flash.port import open_port
 from bstool.flash.session import Programmer, Progress, SlotResult, Timing
 from bstool.flash.target import ModulePlan, Target
 from bstool.moduleid import ModuleId, parse_module
+from bstool.wire import programming as P
 
 PROGRESS_FILE = "flash-progress.json"
 PROGRESS_FORMAT = "bstool.flash-progress/1"

@@ -1,7 +1,8 @@
 """Opening the port a stamp hangs on: device paths, pyserial URLs and ``auto``.
 
 Every failure to open becomes a :class:`~bstool.flash.errors.PortError` with a hint (which
-group grants access, what holds the port). ``bstwin://`` URLs load hil_mock's handler.
+group grants access, what holds the port). URL schemes are pyserial's plug-ins: the twin's
+``bstwin://`` works once hil_mock is imported (it registers its handler package).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import serial
 from serial.tools import list_ports
 
 from bstool.flash.errors import PortError
-from bstool.flash.protocol import BAUD
+from bstool.wire.programming import BAUD
 
 #: URL schemes whose pyserial classes have no modem lines (DTR/BREAK are silently ignored).
 NO_MODEM_SCHEMES = ("socket", "loop")
@@ -59,14 +60,6 @@ def _group_of(path: str) -> str | None:
 def open_port(port: str, *, baud: int = BAUD, timeout: float = 0.25) -> serial.Serial:
     """Open ``port`` (path or pyserial URL) at 8N1 with exclusive access for device paths."""
     kind = scheme(port)
-    if kind == "bstwin":
-        try:
-            import hil_mock.urlhandler  # noqa: F401  (registers the bstwin:// handler)
-        except ImportError as exc:
-            raise PortError(
-                f"{port}: the twin's URL handler is not available ({exc})",
-                hint="install bstool with hil_mock (pip install -e .)",
-            ) from None
     try:
         if kind is None:  # a device path: refuse to share it with another program
             return serial.serial_for_url(

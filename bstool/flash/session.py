@@ -10,14 +10,12 @@ resume at that record, since a reset discards a partial record and sent blocks a
 from __future__ import annotations
 
 import errno
-import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import serial
 
-from bstool.flash import protocol as P
 from bstool.flash.errors import (
     EchoMismatchError,
     FlashTimeoutError,
@@ -27,8 +25,8 @@ from bstool.flash.errors import (
     WrongStampError,
 )
 from bstool.flash.port import NO_MODEM_SCHEMES, scheme
-
-ANNOUNCEMENT = re.compile(rb"bstool L(\d+)\.M(\d+) ([0-9a-fA-F]{8})\r")
+from bstool.wire import announce
+from bstool.wire import programming as P
 
 
 @dataclass
@@ -397,6 +395,6 @@ class Programmer:
             if not chunk:
                 continue
             buf = (buf + chunk)[-64:]
-            found = ANNOUNCEMENT.search(buf)
+            found = announce.find(buf)
             if found:
-                return int(found.group(1)), int(found.group(2)), found.group(3).decode().lower()
+                return found.module.leg, found.module.module, found.hash8

@@ -5,6 +5,7 @@ from __future__ import annotations
 import bisect
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -201,16 +202,23 @@ def _variables(slot: _Slot) -> dict[str, tuple[str, int]]:
     }
 
 
-def tokenize_source(text: str, filename: str = "<source>") -> Project:
+def tokenize_source(
+    text: str, filename: str = "<source>", files: Mapping[str, str] | None = None
+) -> Project:
     """Tokenize a program given as text. Project files it names are read relative to
-    ``filename``'s folder."""
-    main, files = tokenize_slot(text, filename, 0)
+    ``filename``'s folder, or, with ``files`` (name -> text), taken from there instead."""
+    main, names = tokenize_slot(text, filename, 0)
     slots = {0: main}
     base = Path(filename).parent
-    for number, (name, offset) in enumerate(files, start=1):
+    for number, (name, offset) in enumerate(names, start=1):
         path = base / name
         try:
-            other = path.read_bytes().decode("utf-8", errors="replace")
+            if files is not None:
+                if name not in files:
+                    raise FileNotFoundError(2, "not among the sources given")
+                other = files[name]
+            else:
+                other = path.read_bytes().decode("utf-8", errors="replace")
         except OSError as exc:
             line, column = _position(text, offset)
             raise SourceError(

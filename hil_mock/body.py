@@ -1,0 +1,106 @@
+"""The twin's body: each module's servo as a MuJoCo actuator of ``bstool simulate``'s robot.
+
+A PULSOUT on the servo pin sets its target angle through the module's calibration (the inverse
+of the build's state → pulse table). A servo that gets no pulse for :data:`LIMP_AFTER_S` goes
+limp (no torque) until the next pulse.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from bstool.buildfile import Build, Module
+from bstool.moduleid import ModuleId
+from hil_mock.stamp import Stamp
+from hil_mock.twin_result import NS
+
+if TYPE_CHECKING:
+    from bstool.sim.simulator import Simulator
+
+LIMP_AFTER_S = 0.06
+"""An analog hobby servo holds its position for a frame or two after the last pulse, then stops
+driving; 60 ms (3 frames of 20 ms) is the threshold used here."""
+
+
+@dataclass
+class ServoTrack:
+    """One module's servo as the twin sees it."""
+
+    actuator: int
+    pin: int
+    widths: np.ndarray  # PULSOUT units, sorted ascending
+    angles: np.ndarray  # radians for those widths
+    target: float
+    last_pulse_ns: int = -(10**15)
+    longest_gap_ns: int = 0
+    pulses: int = 0
+    limp: bool = False
+
+    def angle_of(self, units: int) -> float:
+        return float(np.interp(units, self.widths, self.angles))
+
+
+class Body:
+    """The physics half of :class:`hil_mock.robot.RobotTwin` (a mixin: it shares its state)."""
+
+    build: Build
+    sim: Simulator | None
+    dt_ns: int
+    t_ns: int
+    servos: dict[ModuleId, ServoTrack]
+    stamps: dict[ModuleId, Stamp]
+    _gain: Any
+    _bias: Any
+
+    def _init_physics(self, physics: bool) -> None:
+        self.sim = None
+        if not physics:
+            self.dt_ns = 2_000_000
+            return
+        from bstool.robot import RobotSpec
+        from bstool.sim.simulator import Simulator
+
+        robot = self.build.manifest.robot
+        spec = RobotSpec(legs=robot.legs, modules=robot.modules, states=robot.states)
+        self.sim = Simulator(spec)
+        self.sim.reset(self.sim.data)
+        self.dt_ns = round(self.sim.model.opt.timestep * NS)
+        self._gain = self.sim.model.actuator_gainprm.copy()
+        self._bias = self.sim.model.actuator_biasprm.copy()
+
+    def _servo(self, mid: ModuleId, info: Module) -> ServoTrack:
+        from bstool.robot import state_to_angle
+
+        widths = np.array(info.servo.pulsout, dtype=float)
+        k = len(widths)
+        angles = np.array([state_to_angle(s, k) for s in range(k)])
+        order = np.argsort(widths, kind="stable")
+        servo_pin = info.servo_pin
+        r0 = int(info.initial_state)
+        actuator = mid.leg * self.build.modules + mid.module
+        return ServoTrack(actuator, servo_pin, widths[order], angles[order], float(angles[r0]))
+
+    def _apply_servos(self) -> None:
+        if self.sim is None:
+            return
+        model, data = self.sim.model, self.sim.data
+        limp_after = int(LIMP_AFTER_S * NS)
+        for mid, servo in self.servos.items():
+            a = servo.actuator
+            if mid in self.stamps:
+                servo.limp = self.t_ns - servo.last_pulse_ns > limp_after
+            if servo.limp:
+                model.actuator_gainprm[a] = 0.0
+                model.actuator_biasprm[a] = 0.0
+            else:
+                model.actuator_gainprm[a] = self._gain[a]
+                model.actuator_biasprm[a] = self._bias[a]
+                data.ctrl[a] = servo.target
+
+    def _disc_xy(self) -> tuple[float, float]:
+        assert self.sim is not None
+        q = self.sim.data.qpos
+        return (float(q[0]), float(q[1]))

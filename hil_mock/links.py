@@ -1,0 +1,61 @@
+"""The twin's link wires: which pins the build joins, and the bytes (and noise) on them.
+
+A BS2sx has no receive buffer: a byte reaches exactly the neighbours that were listening
+(SERIN) when its start bit began (the scheduler of :mod:`hil_mock.schedule` guarantees that).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from bstool.buildfile import Build
+from bstool.errors import InputError
+from bstool.moduleid import ModuleId
+from hil_mock.stamp import Stamp
+
+Wires = dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]]
+
+
+def wires(build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]) -> Wires:
+    """(module, pin) -> the (module, pin) ends it is wired to, without the ``cut`` wires."""
+    ends = [(w.master, w.master_pin, w.slave, w.slave_pin) for w in build.manifest.links]
+    pairs = list(cut)
+    cuts = {frozenset(c) for c in pairs}
+    wired = {frozenset((a, b)) for a, _, b, _ in ends}
+    for a, b in pairs:
+        if frozenset((a, b)) not in wired:
+            raise InputError(
+                f"cannot cut {a}-{b}: no wire joins these modules in this build",
+                hint="WIRING.md lists the wires",
+            )
+    out: Wires = {}
+    for a, pin_a, b, pin_b in ends:
+        if frozenset((a, b)) not in cuts:
+            out.setdefault((a, pin_a), []).append((b, pin_b))
+            out.setdefault((b, pin_b), []).append((a, pin_a))
+    return out
+
+
+class Links:
+    """Link routing with noise, a mixin of :class:`hil_mock.robot.RobotTwin`. ``noise`` is the
+    chance that a byte on a link is hit (half of the hits drop it, half flip one bit)."""
+
+    noise: float
+    rng: np.random.Generator
+    noise_events: dict[str, int]
+    wires: Wires
+    stamps: dict[ModuleId, Stamp]
+
+    def _route(self, mid: ModuleId, pin: int, value: int, start_ns: int, mode: int) -> None:
+        if self.noise and self.rng.random() < self.noise:
+            if self.rng.random() < 0.5:  # the byte is lost (a start bit not seen)
+                self.noise_events["dropped"] += 1
+                return
+            value ^= 1 << int(self.rng.integers(8))  # one bit flipped on the wire
+            self.noise_events["flipped"] += 1
+        for peer, peer_pin in self.wires.get((mid, pin), ()):
+            stamp = self.stamps.get(peer)
+            if stamp is not None:
+                stamp.deliver_byte(peer_pin, value, start_ns, mode)

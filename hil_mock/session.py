@@ -1,0 +1,137 @@
+"""One twin run: (fleet → flash) → twin → reference → check, for ``bstool twin`` and ``demo``.
+
+:func:`run_twin` takes a loaded build (:func:`bstool.buildfile.load`, which has checked every
+slot image against the manifest) and :class:`TwinOptions`, and returns a :class:`TwinReport`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bstool.buildfile import Build
+from bstool.controllers import Controller, load_controller
+from bstool.errors import InputError
+from bstool.moduleid import ModuleId
+from hil_mock.check import TwinCheck, check, reference_simulator
+from hil_mock.robot import CHUNK_STEPS, RobotTwin
+from hil_mock.twin_result import TwinResult
+
+
+@dataclass(frozen=True)
+class TwinOptions:
+    """How to run the twin. ``controller``: what to compare with (default: the build's
+    controller.json; None there too: no reference). ``via_flash``: flash n·m fresh virtual
+    stamps through the programming protocol first instead of loading the images directly."""
+
+    transitions: int = 30
+    failed: Sequence[ModuleId] = ()
+    die: Mapping[ModuleId, int] = field(default_factory=dict)
+    limp_failed: bool = False
+    cut: Sequence[tuple[ModuleId, ModuleId]] = ()
+    noise: float = 0.0
+    seed: int = 0
+    physics: bool = True
+    via_flash: bool = False
+    fleet_name: str | None = None
+    controller: Controller | None = None
+    timeout_s: float | None = None
+    video: str | Path | None = None
+    progress: Callable[[int], object] | None = None  # transitions done (increments)
+
+
+@dataclass
+class TwinReport:
+    build: Build
+    result: TwinResult
+    check: TwinCheck
+    reference: np.ndarray | None  # (T+1, n, m) of `bstool states`, None without a controller
+    sim_distance: float | None  # `bstool simulate`'s distance for the reference
+    flash_status: dict[str, str] | None  # module label -> flashed... (via_flash only)
+    flash_seconds: float
+    twin_seconds: float  # wall-clock time of the twin run
+
+    @property
+    def ok(self) -> bool:
+        """States equal to the reference (trivially true without one)."""
+        return self.reference is None or self.check.states_equal
+
+
+def build_controller(build: Build) -> Controller | None:
+    """The controller the build was compiled from (its controller.json), if it is there."""
+    path = build.controller_file
+    return load_controller(path) if path.is_file() else None
+
+
+def run_twin(build: Build, options: TwinOptions) -> TwinReport:
+    """Run ``build`` on the twin and compare it with the reference (see the module docstring)."""
+    ctrl = options.controller if options.controller is not None else build_controller(build)
+    eeproms = None
+    fleet = None
+    flash_status = None
+    t0 = time.perf_counter()
+    if options.via_flash:
+        from hil_mock.fleet import flash_fleet, make_fleet
+
+        fleet = make_fleet(build.legs, build.modules, name=options.fleet_name)
+    try:
+        if fleet is not None:
+            flash_status = flash_fleet(build.root, fleet)
+            bad = {k: v for k, v in flash_status.items() if v != "flashed"}
+            if bad:
+                raise InputError(f"flashing the twins failed: {bad}")
+            eeproms = dict(fleet.eeproms)
+        flash_seconds = time.perf_counter() - t0
+        twin = RobotTwin(
+            build,
+            eeproms=eeproms,
+            failed=options.failed,
+            die=options.die,
+            limp_failed=options.limp_failed,
+            cut=options.cut,
+            noise=options.noise,
+            seed=options.seed,
+            physics=options.physics,
+        )
+        t0 = time.perf_counter()
+        result = _run(twin, options)
+        twin_seconds = time.perf_counter() - t0
+    finally:
+        if fleet is not None:
+            fleet.close()
+    reference = (
+        ctrl.states(options.transitions, failed=list(options.failed), failed_at=dict(options.die))
+        if ctrl is not None
+        else None
+    )
+    sim_distance = None
+    if reference is not None and options.physics:
+        sim_distance = reference_simulator(build).run(reference).distance
+    report = check(build, result, reference, options.transitions, sim_distance)
+    return TwinReport(
+        build, result, report, reference, sim_distance, flash_status, flash_seconds, twin_seconds
+    )
+
+
+def _run(twin: RobotTwin, options: TwinOptions) -> TwinResult:
+    run = {"progress": options.progress, "timeout_s": options.timeout_s}
+    if not options.video:
+        return twin.run(options.transitions, **run)  # type: ignore[arg-type]
+    from bstool.sim.video import VideoRecorder
+
+    assert twin.sim is not None  # the command refuses --video without physics
+    model = twin.sim.model
+    with VideoRecorder(model, str(options.video)) as rec:
+        every = max(1, round(rec.steps_per_frame(model) / CHUNK_STEPS))
+        chunks = [0]
+
+        def on_chunk(t: RobotTwin) -> None:
+            chunks[0] += 1
+            if chunks[0] % every == 0 and t.sim is not None:
+                rec.frame(t.sim.data)
+
+        return twin.run(options.transitions, on_chunk=on_chunk, **run)  # type: ignore[arg-type]

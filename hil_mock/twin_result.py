@@ -1,0 +1,80 @@
+"""What the robot twin observed: per-module state records and the run's result."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bstool.errors import InputError
+from bstool.moduleid import ModuleId
+from hil_mock.stamp import Stamp
+
+NS = 1_000_000_000
+
+
+@dataclass
+class ModuleRecord:
+    """What one module did: its states and when it made its transitions. A transition is seen
+    at the first servo pulse after the module's transition counter moved: the moment its servo
+    gets the new target (every program pulses its servo at least every 25 ms)."""
+
+    states: list[int] = field(default_factory=list)
+    times_ns: list[int] = field(default_factory=list)
+    last_tn: int | None = None
+
+
+@dataclass
+class TwinResult:
+    states: dict[ModuleId, list[int]]  # observed R^0..R^T per module
+    path: np.ndarray  # (T+1, 2): disc xy when the reference module started transitions 1..T+1
+    periods: dict[ModuleId, list[float]]  # seconds between a module's transitions
+    servo_gaps: dict[ModuleId, float]  # longest time between two servo pulses, seconds
+    stalled: list[ModuleId]
+    announcements: dict[ModuleId, str]
+    virtual_seconds: float
+    instructions: int
+
+    @property
+    def displacement(self) -> tuple[float, float]:
+        if len(self.path) < 2:  # run without physics: no path
+            return (0.0, 0.0)
+        d = self.path[-1] - self.path[0]
+        return float(d[0]), float(d[1])
+
+    @property
+    def distance(self) -> float:
+        return math.hypot(*self.displacement)
+
+    def state_array(self, legs: int, modules: int, transitions: int) -> np.ndarray:
+        """(T+1, n, m) like ``bstool states`` (modules that stalled are padded with -1)."""
+        out = -np.ones((transitions + 1, legs, modules), dtype=np.int64)
+        for mid, seq in self.states.items():
+            k = min(len(seq), transitions + 1)
+            out[:k, mid.leg, mid.module] = seq[:k]
+        return out
+
+    def period_stats(self) -> tuple[float, float]:
+        """Mean and standard deviation of every module's transition period (seconds)."""
+        allp = [p for ps in self.periods.values() for p in ps]
+        if not allp:
+            return math.nan, math.nan
+        return float(np.mean(allp)), float(np.std(allp))
+
+
+def ram_reader(spec: Any) -> Callable[[Stamp], int]:
+    """A reader of one RAM variable given as ["nib"|"byte"|"word"|"bit", index]."""
+    kind, index = spec
+    index = int(index)
+    if kind == "nib":
+        return lambda s: s.memory.nib(index)
+    if kind == "byte":
+        return lambda s: s.memory.byte(index)
+    if kind == "word":
+        return lambda s: s.memory.word(index)
+    if kind == "bit":
+        return lambda s: s.memory.bit(index)
+    raise InputError(f"unknown RAM variable kind {kind!r} in the build's ram_map")
