@@ -116,18 +116,15 @@ report = bst.flash(build.out_dir, "bstwin://walkthrough-L0.M0", module="0.0", ti
 print(f"flash:      L0.M0 {report.summary()}; announcement ok: {report.announcement_ok}")
 summary["flash_ok"] = report.announcement_ok
 
-# %% 8. run the twin: 30 virtual stamps driving the MuJoCo robot
-# LEAD: written against today's hil_mock (what `bstool twin` calls); switch to hil_mock's
-# single run_twin-style function when it lands.
+# %% 8. run the twin: 30 virtual stamps driving the MuJoCo robot, compared with the reference
 if args.twin_transitions:
-    from hil_mock.robot import RobotTwin, load_build
+    from bstool import buildfile
+    from hil_mock.session import TwinOptions, run_twin
 
     tt = args.twin_transitions
-    twin = RobotTwin(load_build(build.out_dir)).run(tt)
-    b = load_build(build.out_dir)
-    same = (twin.state_array(b.legs, b.modules, tt) == bst.states(ctrl, transitions=tt)).all()
-    print(f"twin:       {twin.distance * 100:.2f} cm; states equal to bst.states: {bool(same)}")
-    summary["twin_states_equal"] = bool(same)
+    twin = run_twin(buildfile.load(build.out_dir), TwinOptions(transitions=tt))
+    print(f"twin:       {twin.result.distance * 100:.2f} cm; states equal to bst.states: {twin.ok}")
+    summary["twin_states_equal"] = bool(twin.ok)
 
 if args.summary:
     args.summary.write_text(json.dumps(summary, indent=1) + "\n")
