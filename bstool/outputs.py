@@ -119,7 +119,11 @@ def _alive(pid: int) -> bool:
 
 
 def clean_stale(path: str | os.PathLike[str]) -> list[Path]:
-    """Remove the temporaries beside ``path`` that a killed writer of ``path`` left behind."""
+    """Remove the temporaries beside ``path`` that a killed writer of ``path`` left behind.
+
+    A writer killed between :func:`staged_dir`'s two renames has moved the old folder aside
+    and not yet put the new one in place: the old one is put back, so no kill loses it.
+    """
     p = Path(path)
     parent = p.parent if str(p.parent) else Path(".")
     removed: list[Path] = []
@@ -132,6 +136,10 @@ def clean_stale(path: str | os.PathLike[str]) -> list[Path]:
         pid = int(m.group("pid") or m.group("fpid"))
         if _alive(pid):
             continue
+        previous = entry / "previous"
+        if ".old-" in entry.name and previous.exists() and not (p.exists() or p.is_symlink()):
+            # killed between its two renames: the new folder never arrived; put the old back
+            os.replace(previous, p)
         if entry.is_dir() and not entry.is_symlink():
             shutil.rmtree(entry, ignore_errors=True)
         else:

@@ -116,3 +116,14 @@ def test_atomic_write_of_a_killed_run_is_cleaned_by_the_next(tmp_path: Path) -> 
     fileio.write_bytes(target, b"whole")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["checkpoint.npz"]
     assert target.read_bytes() == b"whole"
+
+
+def test_a_kill_between_the_two_renames_gives_the_old_folder_back(tmp_path: Path) -> None:
+    dead = _dead_pid()
+    aside = tmp_path / f".out.old-{dead}-abc"
+    (aside / "previous").mkdir(parents=True)
+    (aside / "previous" / "best.json").write_text("keep")
+    (tmp_path / f".out.new-{dead}-def").mkdir()  # the new folder, never renamed in
+    outputs.clean_stale(tmp_path / "out")
+    assert (tmp_path / "out" / "best.json").read_text() == "keep"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
