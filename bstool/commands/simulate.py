@@ -6,6 +6,7 @@ mujoco is imported only after the GL backend is chosen (``--video`` renders offs
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -182,12 +183,12 @@ def _load_source(
             return _from_states(data, controller, transitions, failed)
         return _from_controller(controller, data, transitions, failed)
     if states_file == "-":  # e.g. bstool states best.json | bstool simulate --states -
-        try:
-            data = json.loads(click.get_text_stream("stdin").read())
-        except json.JSONDecodeError as exc:
+        text = sys.stdin.read(fileio.MAX_JSON_BYTES + 1)
+        if len(text) > fileio.MAX_JSON_BYTES:
             raise InputError(
-                f"<stdin>:{exc.lineno}:{exc.colno}: malformed JSON in states: {exc.msg}"
-            ) from None
+                f"states on <stdin> are larger than {fileio.MAX_JSON_BYTES // 2**20} MiB"
+            )
+        data = fileio.loads_json(text, "<stdin>", "states")
         return _from_states(data, "<stdin>", transitions, failed)
     if states_file:
         data = fileio.read_json(states_file, "states file")
