@@ -15,7 +15,7 @@ from typing import Any
 import click
 import numpy as np
 
-from bstool import fileio
+from bstool import fileio, outputs
 from bstool.builtin import DEFAULT_MODEL, MODELS
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
@@ -106,6 +106,9 @@ def command(
     """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
     print the disc's displacement and distance (paper eq. 6). Without either, run a shipped
     evolved controller (--model; --example for a hand-made wave)."""
+    for what, path in (("plot", plot), ("video", video)):
+        if path:
+            outputs.check_file(path, what)  # before any simulation
     if video:
         from bstool.sim.gl import configure_headless_gl
 
