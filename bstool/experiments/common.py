@@ -51,8 +51,8 @@ def unique_labels(paths: Sequence[str | Path], base: Sequence[str] | None = None
     labels = list(names)
     for name in set(names):
         idx = [i for i, n in enumerate(names) if n == name]
-        if len(idx) < 2:
-            continue
+        if len({Path(paths[i]).resolve() for i in idx}) < 2:
+            continue  # one file given several times: numbered below
         depth = 1
         while True:
             tails = {i: _tail(parts[i], depth, Path(paths[i])) for i in idx}
