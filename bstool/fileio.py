@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -13,25 +14,73 @@ from typing import IO, Any
 from bstool import outputs
 from bstool.errors import InputError
 
+#: The largest JSON file a command reads (controllers, states, manifests are far smaller).
+MAX_JSON_BYTES = 64 * 1024 * 1024
 
-def read_json(path: str | os.PathLike[str], what: str = "JSON file") -> Any:
-    """Load a JSON file; a missing file or a syntax error becomes an :class:`InputError`."""
+
+def read_limited(
+    path: str | os.PathLike[str], what: str = "file", limit: int = MAX_JSON_BYTES
+) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes, else an :class:`InputError`.
+
+    A FIFO, a device (``/dev/zero``) or a folder is refused before it is opened, so nothing
+    hangs; at most ``limit`` + 1 bytes are read even if the file grows meanwhile.
+    """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        st = p.stat()
     except FileNotFoundError:
         raise InputError(f"{what} not found: {p}", hint="check the path") from None
-    except IsADirectoryError:
-        raise InputError(f"{what} is a directory, expected a file: {p}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {what} {p}: {exc}") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{what} is a directory, expected a file: {p}")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(
+            f"{what} {p} is not a regular file (a pipe or a device)",
+            hint="give a file saved on disk",
+        )
+    too_big = InputError(
+        f"{what} {p} is larger than {limit // (1024 * 1024)} MiB", hint="give the right file"
+    )
+    if st.st_size > limit:
+        raise too_big
+    try:
+        with open(p, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise too_big
+    return data
+
+
+def loads_json(text: str | bytes, where: str, what: str = "JSON file") -> Any:
+    """Parse JSON; malformed, absurdly nested or huge-integer input is an :class:`InputError`."""
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(
-            f"{p}:{exc.lineno}:{exc.colno}: malformed JSON in {what}: {exc.msg}",
+            f"{where}:{exc.lineno}:{exc.colno}: malformed JSON in {what}: {exc.msg}",
             hint="fix the file or regenerate it",
         ) from None
+    except UnicodeDecodeError:
+        raise InputError(f"cannot read {what} {where}: not UTF-8 text") from None
+    except RecursionError:
+        raise InputError(
+            f"{where}: {what} is nested too deeply to be read",
+            hint="fix the file or regenerate it",
+        ) from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise InputError(
+            f"{where}: cannot read {what}: {exc}".split("; use sys.")[0],
+            hint="fix the file or regenerate it",
+        ) from None
+
+
+def read_json(path: str | os.PathLike[str], what: str = "JSON file") -> Any:
+    """Load a JSON file; a missing, oversized, special or malformed file is an InputError."""
+    return loads_json(read_limited(path, what), str(Path(path)), what)
 
 
 @contextmanager

@@ -8,8 +8,9 @@ import json
 import click
 import numpy as np
 
-from bstool.experiments import common
-from bstool.experiments.extrapolate import reinit_states
+from bstool import outputs
+from bstool.experiments import common, progress
+from bstool.experiments.extrapolate import reinit_states, run_with_progress
 from bstool.experiments.paths import distance_curve
 
 
@@ -18,14 +19,15 @@ from bstool.experiments.paths import distance_curve
 @click.option("-T", "--transitions", type=click.IntRange(min=1), default=120, show_default=True)
 @click.option(
     "--reinit-every",
-    type=click.IntRange(min=1),
+    type=click.IntRange(min=0),
     default=None,
     help="Also run with the states re-initialised every N transitions (default: the "
-    "controller's max_trans, else 30). 0 turns the variant off.",
+    "controller's max_trans, else 30). 0 turns the variant off (like --no-reinit).",
 )
 @click.option("--no-reinit", is_flag=True, help="Only the plain run.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("--plot", type=click.Path(dir_okay=False), help="PNG of distance against transition.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(
     controller: str,
     transitions: int,
@@ -33,19 +35,20 @@ def command(
     no_reinit: bool,
     as_json: bool,
     plot: str | None,
+    quiet: bool,
 ) -> None:
     """Run CONTROLLER for -T transitions and report the distance from the start after each
     one: does it keep going after the MAX_TRANS it was evolved for?"""
-    from bstool.sim.batch import BatchEvaluator
-
+    if plot:
+        outputs.check_file(plot, "plot")
     loaded = common.load(controller)
     max_trans = loaded.controller.max_trans or 30
-    every = reinit_every or max_trans
+    every = max_trans if reinit_every is None else reinit_every
     sequences = {"plain": loaded.controller.states(transitions)}
-    if not no_reinit:
+    if not no_reinit and every > 0:
         sequences[f"reinit every {every}"] = reinit_states(loaded.controller, transitions, every)
-    with BatchEvaluator(loaded.spec) as evaluator:
-        results = evaluator.evaluate(list(sequences.values()))
+    with progress.bar("extrapolate", None, quiet=quiet, unit="transition") as bar:
+        results = run_with_progress(loaded.spec, list(sequences.values()), bar, bar.total)
     curves = {name: distance_curve(r.path) for name, r in zip(sequences, results, strict=True)}
     if as_json:
         click.echo(json.dumps({

@@ -4,10 +4,12 @@ several at a time."""
 from __future__ import annotations
 
 import json
+import math
 
 import click
 
-from bstool.experiments import common
+from bstool import outputs
+from bstool.experiments import common, progress
 from bstool.experiments.mobility import (
     FaultRun,
     SingleFaults,
@@ -72,26 +74,35 @@ def command(
     summary: how many single failures keep ≥ 80 % and 100 % of the mobility.
 
     With --k, fail K random modules at once, --samples times per K."""
+    if plot:
+        outputs.check_file(plot, "plot")  # before minutes of simulation, not after
     from bstool.sim.batch import BatchEvaluator
 
     loaded = common.load(controller)
     T = common.default_transitions(loaded.controller, transitions)
-    with BatchEvaluator(loaded.spec, workers=workers) as evaluator:
-        evaluate = distances_with(evaluator)
+    cells = loaded.controller.legs * loaded.controller.modules
+    runs = 1 + (sum(min(samples, math.comb(cells, k)) for k in set(ks)) if ks else cells)
+    with (
+        BatchEvaluator(loaded.spec, workers=workers) as evaluator,
+        progress.bar("faults", runs, quiet=quiet) as bar,
+    ):
+        evaluate = distances_with(evaluator, bar)
         if not ks:
             result = single_failures(loaded.controller, evaluate, T)
-            _report_single(loaded.name, result, T, as_json)
-            if plot:
-                from bstool.experiments.plots import plot_single_failures
+        else:
+            baseline = evaluate([loaded.controller.states(T)])[0]
+            by_k: dict[int, list[FaultRun]] = {}
+            for k in sorted(set(ks)):
+                by_k[k] = random_failures(
+                    loaded.controller, evaluate, T, k, samples, seed=seed + k, baseline=baseline
+                )
+    if not ks:
+        _report_single(loaded.name, result, T, as_json)
+        if plot:
+            from bstool.experiments.plots import plot_single_failures
 
-                plot_single_failures(plot, {loaded.name: result})
-            return
-        baseline = evaluate([loaded.controller.states(T)])[0]
-        by_k: dict[int, list[FaultRun]] = {}
-        for k in sorted(set(ks)):
-            by_k[k] = random_failures(
-                loaded.controller, evaluate, T, k, samples, seed=seed + k, baseline=baseline
-            )
+            plot_single_failures(plot, {loaded.name: result})
+        return
     _report_multi(loaded.name, baseline, by_k, T, seed, as_json)
     if plot:
         from bstool.experiments.plots import plot_multi_failures

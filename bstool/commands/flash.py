@@ -12,9 +12,17 @@ import click
 from tqdm import tqdm
 
 import hil_mock  # noqa: F401  (registers bstwin://, the twin's serial URLs)
+from bstool import outputs
 from bstool.errors import DeviceError, InputError
 from bstool.flash import protocol as P
-from bstool.flash.flasher import ModuleReport, flash_all, flash_module, read_ports_file
+from bstool.flash.flasher import (
+    PROGRESS_FILE,
+    ModuleReport,
+    check_module,
+    flash_all,
+    flash_module,
+    read_ports_file,
+)
 from bstool.flash.port import resolve_auto
 from bstool.flash.session import FAST, Progress, Timing
 from bstool.flash.target import ModulePlan, load_target
@@ -42,6 +50,12 @@ def _timing(attempts: int) -> Timing:
 @click.option("--baud", default=P.BAUD, show_default=True, help="Line speed.")
 @click.option("--attempts", default=3, show_default=True, help="Connect attempts (each resets).")
 @click.option("--no-listen", is_flag=True, help="Do not wait for the start-up announcement.")
+@click.option(
+    "--force",
+    is_flag=True,
+    help="With --all: flash every module, even those the progress file and the stamp's "
+    "announcement say run this build already.",
+)
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars or chatter.")
 def command(
     target: Path,
@@ -54,11 +68,15 @@ def command(
     baud: int,
     attempts: int,
     no_listen: bool,
+    force: bool,
     quiet: bool,
 ) -> None:
     """Upload TARGET (a compile output dir, a .bsx file or a controller file) into BS2sx
     modules over the programming protocol, verifying every byte's echo and every record's
     acknowledgement, then check the start-up announcement names the right module/controller.
+
+    --all resumes: a module flash-progress.json calls flashed is skipped only when its stamp,
+    restarted, announces this build's module and controller; --force flashes them all.
     """
     if port is None and ports_file is None:
         raise InputError("give the port: --port /dev/ttyUSB0 (or auto, or a URL)")
@@ -126,25 +144,47 @@ def command(
         one(port, plan)
         return
 
+    if plan_target.build_dir is not None:  # the resume file is written before each module
+        outputs.check_file(plan_target.build_dir / PROGRESS_FILE, "flash progress file")
+
     def port_for(plan: ModulePlan) -> str | None:
         if ports is not None:
             if plan.module not in ports:
                 say(f"{plan.label}: no port in {ports_file}; skipped")
                 return None
             return ports[plan.module]
-        answer = (
-            click.prompt(
+        try:
+            answer = click.prompt(
                 f"connect {plan.label}, Enter to flash, s to skip, q to quit",
                 default="",
                 show_default=False,
                 err=True,
             )
-            .strip()
-            .lower()
-        )
+        except click.exceptions.Abort as exc:
+            if not isinstance(exc.__context__, EOFError):
+                raise  # Ctrl-C at the prompt
+            raise InputError(
+                f"flash --all asks which module is connected, but standard input ended "
+                f"(no terminal?) before {plan.label}",
+                hint="run it in a terminal, or give --ports FILE mapping each module to its "
+                'port, e.g. {"L0.M0": "/dev/ttyUSB0", ...}',
+            ) from None
+        answer = answer.strip().lower()
         return "quit" if answer == "q" else None if answer == "s" else port
 
-    result = flash_all(plan_target, port_for=port_for, flash=one, log=say)
+    def check(port_name: str, plan: ModulePlan) -> str | None:
+        if port_name == "auto":
+            port_name = resolve_auto(_choose if sys.stdin.isatty() else None)
+        return check_module(port_name, plan, baud=baud, timing=timing)
+
+    result = flash_all(
+        plan_target,
+        port_for=port_for,
+        flash=one,
+        log=say,
+        check=None if no_listen else check,
+        force=force,
+    )
     click.echo("\nmodule   result")
     for label, status in result.status.items():
         extra = f"  {result.messages[label]}" if label in result.messages else ""
@@ -154,7 +194,8 @@ def command(
     if result.failed:
         raise DeviceError(
             f"{len(result.failed)} module(s) failed: {', '.join(result.failed)}",
-            hint="fix them and run the same command again: flashed modules are skipped",
+            hint="fix them and run the same command again: modules whose stamps announce this "
+            "build are skipped (--force flashes them all)",
         )
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from bstool import fileio
+from bstool import fileio, outputs
 from bstool.robot import RobotSpec, to_mjcf
 
 
@@ -30,6 +30,8 @@ from bstool.robot import RobotSpec, to_mjcf
 def command(xml_out: str | None, legs: int, modules: int, lead_axis: str) -> None:
     """Generate the robot's MuJoCo model (MJCF) from the robot description. Without --xml,
     print a summary of the model."""
+    if xml_out and xml_out != "-":
+        outputs.check_file(xml_out, "model file")
     spec = RobotSpec(legs=legs, modules=modules, lead_axis=lead_axis)  # type: ignore[arg-type]
     xml = to_mjcf(spec)
     if xml_out == "-":

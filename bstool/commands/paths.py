@@ -7,7 +7,8 @@ import json
 
 import click
 
-from bstool.experiments import common
+from bstool import outputs
+from bstool.experiments import common, progress
 from bstool.experiments.paths import path_shape
 
 
@@ -22,26 +23,38 @@ from bstool.experiments.paths import path_shape
 )
 @click.option("--plot", type=click.Path(dir_okay=False), help="PNG with every path.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(
-    controllers: tuple[str, ...], transitions: int | None, plot: str | None, as_json: bool
+    controllers: tuple[str, ...],
+    transitions: int | None,
+    plot: str | None,
+    as_json: bool,
+    quiet: bool,
 ) -> None:
-    """Simulate each CONTROLLER and compare the paths of the disc."""
+    """Simulate each CONTROLLER and compare the paths of the disc. Controllers with the same
+    name are told apart by their folders, e.g. ``nnsin (runs)`` and ``nnsin (other)``."""
+    if plot:
+        outputs.check_file(plot, "plot")
+    loaded = [common.load(path) for path in controllers]
+    labels = common.unique_labels(controllers)
     from bstool.sim.simulator import SimResult, Simulator
 
     runs: list[tuple[str, SimResult]] = []
-    for path in controllers:
-        loaded = common.load(path)
-        T = common.default_transitions(loaded.controller, transitions)
-        runs.append((loaded.name, Simulator(loaded.spec).run(loaded.controller.states(T))))
+    with progress.bar("paths", len(loaded), quiet=quiet) as advance:
+        for label, item in zip(labels, loaded, strict=True):
+            T = common.default_transitions(item.controller, transitions)
+            runs.append((label, Simulator(item.spec).run(item.controller.states(T))))
+            advance(1)
     shapes = {name: path_shape(r.path) for name, r in runs}
     if as_json:
         click.echo(json.dumps({name: s.to_json() for name, s in shapes.items()}))
     else:
-        click.echo(f"{'controller':16}{'dist cm':>9}{'len cm':>9}{'max dev':>9}{'rms dev':>9}"
-                   f"{'sway':>8}{'heading':>9}")  # fmt: skip
+        width = max(16, *(len(name) + 2 for name in shapes))
+        click.echo(f"{'controller':{width}}{'dist cm':>9}{'len cm':>9}{'max dev':>9}"
+                   f"{'rms dev':>9}{'sway':>8}{'heading':>9}")  # fmt: skip
         for name, s in shapes.items():
             click.echo(
-                f"{name:16}{s.distance * 100:9.2f}{s.length * 100:9.2f}"
+                f"{name:{width}}{s.distance * 100:9.2f}{s.length * 100:9.2f}"
                 f"{s.max_deviation * 100:9.2f}{s.rms_deviation * 100:9.2f}"
                 f"{s.sway * 100:8.2f}{s.heading:8.1f}°"
             )

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from bstool import outputs
 from bstool.errors import InputError
 from bstool.evolve.checkpoint import HISTORY, read_history
 
@@ -30,6 +31,7 @@ def command(runs: tuple[str, ...], output: str, title: str) -> None:
         raise InputError(
             f"cannot write a plot as {output!r}", hint="name the output .png, .svg or .pdf"
         )
+    outputs.check_file(output, "plot")
     from bstool.experiments.plots import plot_fitness
 
     histories = {Path(run_dir).name: read_history(Path(run_dir) / HISTORY) for run_dir in runs}

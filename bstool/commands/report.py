@@ -13,7 +13,8 @@ import click
     type=click.Path(file_okay=False),
     default="report",
     show_default=True,
-    help="Directory for index.html, report.json and the PNGs (replaced as a whole).",
+    help="Folder for index.html, report.json and the PNGs, replaced as a whole. It must be "
+    "new, empty or an earlier report (else --force), and never holds the INPUTS.",
 )
 @click.option("-T", "--transitions", type=click.IntRange(min=1), default=30, show_default=True,
               help="MAX_TRANS for paths, failures and rotations.")  # fmt: skip
@@ -30,7 +31,8 @@ import click
     "M_D against K per controller (0: skip; costs 5 x SAMPLES runs per controller).",
 )
 @click.option("--workers", type=click.IntRange(min=1), default=None, help="Physics threads.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
+@click.option("--force", is_flag=True, help="Replace OUT even if it is not an earlier report.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar or messages.")
 def command(
     inputs: tuple[str, ...],
     out: str,
@@ -38,18 +40,33 @@ def command(
     extrapolate: int,
     multi_samples: int,
     workers: int | None,
+    force: bool,
     quiet: bool,
 ) -> None:
     """Compare INPUTS (evolve run directories or controller files): fitness curves, disc paths,
     mobility under single failures, distance beyond MAX_TRANS, spread over leg rotations, and
     a table of the numbers. Open OUT/index.html in any browser (no network needed)."""
+    from bstool.experiments import progress
     from bstool.experiments.report import build_report
 
-    def say(msg: str) -> None:
-        if not quiet:
-            click.echo(f"... {msg}", err=True)
+    with progress.bar("report", None, quiet=quiet) as bar:
 
-    index = build_report(
-        inputs, out, transitions, extrapolate, workers, progress=say, multi_samples=multi_samples
-    )
+        def say(msg: str) -> None:
+            if progress.enabled(quiet):
+                bar.describe(msg)
+            elif not quiet:
+                click.echo(f"... {msg}", err=True)
+
+        index = build_report(
+            inputs,
+            out,
+            transitions,
+            extrapolate,
+            workers,
+            progress=say,
+            multi_samples=multi_samples,
+            force=force,
+            runs_done=bar,
+            runs_total=bar.total,
+        )
     click.echo(f"report: {index}")

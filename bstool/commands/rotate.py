@@ -6,6 +6,7 @@ import json
 
 import click
 
+from bstool import outputs
 from bstool.controllers import save_controller
 from bstool.experiments import common
 from bstool.experiments.paths import heading_deg, wrap_deg
@@ -55,6 +56,7 @@ def command(
     same gait in another direction. Both headings are measured in simulation."""
     if (legs is None) == (heading is None):
         raise click.UsageError("give exactly one of --legs R or --heading DEG")
+    outputs.check_file(out, "rotated controller")
     from bstool.sim.simulator import Simulator
 
     loaded = common.load(controller)

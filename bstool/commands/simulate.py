@@ -15,7 +15,7 @@ from typing import Any
 import click
 import numpy as np
 
-from bstool import fileio
+from bstool import fileio, outputs
 from bstool.builtin import DEFAULT_MODEL, MODELS
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
@@ -106,6 +106,9 @@ def command(
     """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
     print the disc's displacement and distance (paper eq. 6). Without either, run a shipped
     evolved controller (--model; --example for a hand-made wave)."""
+    for what, path in (("plot", plot), ("video", video)):
+        if path:
+            outputs.check_file(path, what)  # before any simulation
     if video:
         from bstool.sim.gl import configure_headless_gl
 
@@ -183,12 +186,12 @@ def _load_source(
             return _from_states(data, controller, transitions, failed)
         return _from_controller(controller, data, transitions, failed)
     if states_file == "-":  # e.g. bstool states best.json | bstool simulate --states -
-        try:
-            data = json.loads(sys.stdin.read())
-        except json.JSONDecodeError as exc:
+        text = sys.stdin.read(fileio.MAX_JSON_BYTES + 1)
+        if len(text) > fileio.MAX_JSON_BYTES:
             raise InputError(
-                f"<stdin>:{exc.lineno}:{exc.colno}: malformed JSON in states: {exc.msg}"
-            ) from None
+                f"states on <stdin> are larger than {fileio.MAX_JSON_BYTES // 2**20} MiB"
+            )
+        data = fileio.loads_json(text, "<stdin>", "states")
         return _from_states(data, "<stdin>", transitions, failed)
     if states_file:
         data = fileio.read_json(states_file, "states file")

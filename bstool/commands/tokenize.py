@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
+import re
+from collections.abc import Callable
 from pathlib import Path
 
 import click
 
-from bstool import fileio
+from bstool import fileio, outputs
 from bstool.errors import InputError
 from bstool.tokenizer import Project, SlotImage, tokenize_file
+
+MARKER = "tokenize.json"  # written last into OUT: which project the slot files belong to
+MARKER_FORMAT = "bstool.slots/1"
+_SLOT_FILE = re.compile(r"^slot[0-7]\.(eeprom|packets)$")
 
 
 def _report(project: Project, out: Path | None) -> list[str]:
@@ -22,7 +29,7 @@ def _report(project: Project, out: Path | None) -> list[str]:
             + f", {len(slot.records)} records, variables {slot.variables_used} of 26 B"
         )
     if out is not None:
-        lines.append(f"  written to {out}/slot<N>.eeprom and slot<N>.packets")
+        lines.append(f"  written to {out}/: slot<N>.eeprom, slot<N>.packets and {MARKER}")
     return lines
 
 
@@ -35,6 +42,31 @@ def _listing(slot: SlotImage) -> list[str]:
     return lines
 
 
+def made_for(source: Path) -> Callable[[Path], bool]:
+    """Whether a folder is an earlier output of ``bstool tokenize SOURCE`` (the same project):
+    only slot files and the marker in it, and the marker names this main file."""
+
+    def ours(folder: Path) -> bool:
+        names = [p.name for p in folder.iterdir()]
+        if MARKER not in names or not all(n == MARKER or _SLOT_FILE.match(n) for n in names):
+            return False
+        try:
+            data = fileio.read_json(folder / MARKER, "tokenize marker")
+        except InputError:
+            return False
+        return (
+            isinstance(data, dict)
+            and data.get("format") == MARKER_FORMAT
+            and data.get("source") == str(source.resolve())
+        )
+
+    return ours
+
+
+def default_out(source: Path) -> Path:
+    return Path(f"{source.stem}.slots")
+
+
 @click.command("tokenize")
 @click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
@@ -42,24 +74,43 @@ def _listing(slot: SlotImage) -> list[str]:
     "--out",
     "out",
     type=click.Path(file_okay=False, path_type=Path),
-    default=Path("."),
-    show_default=True,
-    help="Folder for slot<N>.eeprom and slot<N>.packets.",
+    default=None,
+    help="Folder for the slot files, written as a whole (default: SOURCE-NAME.slots in the "
+    "current folder). It must be new, empty or an earlier output for the same SOURCE (else "
+    "--force); it never replaces or holds the sources.",
 )
+@click.option("--force", is_flag=True, help="Replace OUT even if this command did not make it.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @click.option("--listing", is_flag=True, help="Print each statement's bit address and bits.")
-def command(source: Path, out: Path, as_json: bool, listing: bool) -> None:
+def command(source: Path, out: Path | None, force: bool, as_json: bool, listing: bool) -> None:
     """Tokenize SOURCE (and the project files its $STAMP directive names).
 
     Writes, for each slot N, OUT/slotN.eeprom (2048 bytes) and OUT/slotN.packets (the
-    18-byte download records in send order), then prints program bytes, DATA bytes, records
-    and variables used per slot.
+    18-byte download records in send order), plus OUT/tokenize.json naming the project, then
+    prints program bytes, DATA bytes, records and variables used per slot. The folder is
+    replaced in one step: never a mix of old and new slots, no slots left of a bigger program.
     """
+    out = (out if out is not None else default_out(source)).resolve()
+    ours = made_for(source)
+    outputs.check_dir(out, "slot folder", force=force, ours=ours, protect=(source,))
     project = tokenize_file(source)
+    sources = tuple(Path(s.source) for s in project.slots.values())
+    outputs.check_dir(out, "slot folder", force=force, ours=ours, protect=(source, *sources))
+    marker = {
+        "format": MARKER_FORMAT,
+        "source": str(source.resolve()),
+        "target": project.target,
+        "slots": {
+            str(n): {"source": s.source, "sha256": hashlib.sha256(s.eeprom).hexdigest()}
+            for n, s in sorted(project.slots.items())
+        },
+    }
     try:
-        for number, slot in project.slots.items():
-            fileio.write_bytes(out / f"slot{number}.eeprom", slot.eeprom)
-            fileio.write_bytes(out / f"slot{number}.packets", slot.packets)
+        with outputs.staged_dir(out) as tmp:
+            for number, slot in sorted(project.slots.items()):
+                fileio.write_bytes(tmp / f"slot{number}.eeprom", slot.eeprom)
+                fileio.write_bytes(tmp / f"slot{number}.packets", slot.packets)
+            fileio.write_json(tmp / MARKER, marker)
     except OSError as exc:
         raise InputError(
             f"cannot write the images to {out}: {exc.strerror or exc}",

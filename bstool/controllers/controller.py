@@ -326,6 +326,8 @@ def _kind(value: Any) -> str:
         return "null"
     if isinstance(value, bool):
         return "a boolean"
+    if isinstance(value, int) and abs(value) >= 10**18:  # str() of a huge int is slow or fails
+        return f"an integer of about {int(abs(value).bit_length() * 0.30103) + 1} digits"
     if isinstance(value, int | float):
         return f"the number {value}"
     if isinstance(value, str):

@@ -3,11 +3,18 @@ MAX_TRANS transitions (§5.2, "reinitialize the state of the modules, and restar
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+
+import mujoco
 import numpy as np
 
 from bstool.controllers import Controller
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
+from bstool.robot import RobotSpec
+from bstool.sim.simulator import SimResult, Simulator
+from bstool.sim.states import validate_states
 
 
 def reinit_states(
@@ -27,3 +34,30 @@ def reinit_states(
     reps = transitions // (every + 1) + 1
     frames = np.concatenate([block] * reps, axis=0)
     return frames[: transitions + 1]
+
+
+def run_with_progress(
+    spec: RobotSpec,
+    sequences: Sequence[np.ndarray],
+    advance: Callable[[int], None] | None = None,
+    total: Callable[[int], None] | None = None,
+) -> list[SimResult]:
+    """Run each sequence on its own thread, calling ``advance(1)`` after every simulated
+    transition (``total(n)`` first, with the number of calls to come)."""
+    sim = Simulator(spec)
+    chunk = sim.steps_per_transition
+    arrays = [validate_states(s, sim.spec) for s in sequences]
+    datas = [sim.data] + [mujoco.MjData(sim.model) for _ in arrays[1:]]
+    if total:
+        total(sum(sim.steps_for(len(a) - 1) // chunk for a in arrays))
+
+    def tick(_data: mujoco.MjData) -> None:
+        if advance:
+            advance(1)
+
+    with ThreadPoolExecutor(max(1, len(arrays)), thread_name_prefix="bstool-ext") as pool:
+        futures = [
+            pool.submit(sim.run_validated, a, d, on_chunk=tick, chunk_steps=chunk)
+            for a, d in zip(arrays, datas, strict=True)
+        ]
+        return [f.result() for f in futures]

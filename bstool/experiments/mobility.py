@@ -24,13 +24,20 @@ Evaluate = Callable[[Sequence[np.ndarray]], list[float]]
 """Distances for a list of state sequences (a BatchEvaluator wrapped by `distances_with`)."""
 
 
-def distances_with(evaluator: object) -> Evaluate:
-    """Adapt a :class:`bstool.sim.BatchEvaluator` (or a Simulator) to :data:`Evaluate`."""
+def distances_with(evaluator: object, progress: Callable[[int], None] | None = None) -> Evaluate:
+    """Adapt a :class:`bstool.sim.BatchEvaluator` (or a Simulator) to :data:`Evaluate`;
+    ``progress(k)`` hears of every k finished runs."""
 
     def evaluate(states: Sequence[np.ndarray]) -> list[float]:
         if hasattr(evaluator, "evaluate"):
-            return [r.distance for r in evaluator.evaluate(list(states))]
-        return [evaluator.run(s).distance for s in states]  # type: ignore[attr-defined]
+            results = evaluator.evaluate(list(states), progress=progress)
+            return [r.distance for r in results]
+        out = []
+        for s in states:
+            out.append(evaluator.run(s).distance)  # type: ignore[attr-defined]
+            if progress:
+                progress(1)
+        return out
 
     return evaluate
 

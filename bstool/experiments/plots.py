@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bstool import fileio
+from bstool.errors import InputError
 from bstool.experiments.mobility import FaultRun, SingleFaults, summarize
 
 if TYPE_CHECKING:
@@ -25,10 +26,13 @@ def _figure(width: float, height: float) -> Figure:
     return _Figure(figsize=(width, height), dpi=100)
 
 
-def _save(fig: Figure, path: str | os.PathLike[str]) -> None:
+def _save(fig: Figure, path: str | os.PathLike[str], fmt: str = "png") -> None:
     fig.tight_layout()
-    with fileio.atomic_open(path, "wb") as fh:
-        fig.savefig(fh, format="png")
+    try:
+        with fileio.atomic_open(path, "wb") as fh:
+            fig.savefig(fh, format=fmt)
+    except OSError as exc:  # checked before the work; this is the disk filling up meanwhile
+        raise InputError(f"cannot write the plot {path}: {exc.strerror or exc}") from None
 
 
 def plot_single_failures(
@@ -146,7 +150,5 @@ def plot_fitness(
     ax.set_title(title)
     ax.grid(True, linewidth=0.3)
     ax.legend(fontsize="small")
-    fig.tight_layout()
     suffix = os.fspath(path).rsplit(".", 1)[-1].lower()
-    with fileio.atomic_open(path, "wb") as fh:
-        fig.savefig(fh, format=suffix if suffix in ("svg", "pdf") else "png")
+    _save(fig, path, suffix if suffix in ("svg", "pdf") else "png")

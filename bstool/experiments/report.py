@@ -3,8 +3,9 @@ fitness curves, paths, fault tolerance, extrapolation and the numbers, plus repo
 
 from __future__ import annotations
 
+import math
 import os
-import tempfile
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,7 +14,8 @@ from typing import Any
 import jinja2
 import numpy as np
 
-from bstool import __version__, fileio
+from bstool import __version__, fileio, outputs
+from bstool.controllers import Controller
 from bstool.errors import InputError
 from bstool.experiments import common, mobility
 from bstool.experiments.extrapolate import reinit_states
@@ -50,10 +52,9 @@ def find_entries(inputs: Sequence[str]) -> list[Entry]:
             entries.append(Entry(p.stem, common.load(str(p)), None))
         else:
             raise InputError(f"no such run directory or controller file: {p}")
-    names = [e.name for e in entries]
-    for e in entries:  # disambiguate equal names (e.g. several runs/best.json)
-        if names.count(e.name) > 1:
-            e.name = f"{e.name} ({Path(e.loaded.path).parent})"
+    labels = common.unique_labels([e.loaded.path for e in entries], [e.name for e in entries])
+    for e, label in zip(entries, labels, strict=True):  # e.g. several runs/best.json
+        e.name = label
     return entries
 
 
@@ -66,23 +67,34 @@ def build_report(
     progress: Progress | None = None,
     multi_samples: int = 0,
     multi_k: Sequence[int] = (1, 2, 3, 4, 5),
+    force: bool = False,
+    runs_done: Callable[[int], None] | None = None,
+    runs_total: Callable[[int], None] | None = None,
 ) -> Path:
     """Run every experiment for every input and write ``out_dir/index.html`` (atomically: the
     whole directory appears at once). ``multi_samples`` > 0 adds the multiple-failure curves:
-    that many random sets of K failed modules per K in ``multi_k`` (seed K, as `bstool faults`)."""
+    that many random sets of K failed modules per K in ``multi_k`` (seed K, as `bstool faults`).
+
+    ``out_dir`` must be new, empty, or an earlier report (else ``force``); it may never be or
+    hold one of the inputs. ``runs_total(n)`` hears how many simulations are to come,
+    ``runs_done(k)`` of every k finished."""
     from bstool.experiments import plots
     from bstool.sim.batch import BatchEvaluator
     from bstool.sim.plot import plot_paths
     from bstool.sim.simulator import SimResult
 
+    out = outputs.check_dir(
+        out_dir, "report folder", force=force, ours=is_report, protect=tuple(inputs)
+    )
     entries = find_entries(inputs)
     if not entries:
         raise InputError("nothing to report", hint="give run directories or controller files")
     say = progress or (lambda _msg: None)
-    out = Path(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    if runs_total:
+        runs_total(sum(simulations(e.loaded.controller, transitions, extrapolate,
+                                   multi_samples, multi_k) for e in entries))  # fmt: skip
+    done = runs_done or (lambda _k: None)
+    with outputs.staged_dir(out) as tmp:
         rows: list[dict[str, Any]] = []
         faults: dict[str, SingleFaults] = {}
         multi: dict[str, dict[int, list[mobility.FaultRun]]] = {}
@@ -90,20 +102,22 @@ def build_report(
         for e in entries:
             c = e.loaded.controller
             with BatchEvaluator(e.loaded.spec, workers=workers) as ev:
-                evaluate = distances_with(ev)
+                evaluate = distances_with(ev, runs_done)
                 say(f"{e.name}: path and extrapolation")
                 plain, reinit = ev.evaluate(
-                    [c.states(extrapolate), reinit_states(c, extrapolate, transitions)]
+                    [c.states(extrapolate), reinit_states(c, extrapolate, transitions)],
+                    progress=runs_done,
                 )
                 if extrapolate >= transitions:  # the same states, so the same first T steps
                     base = SimResult(plain.path[: transitions + 1])
                 else:
-                    base = ev.evaluate([c.states(transitions)])[0]
+                    base = ev.evaluate([c.states(transitions)], progress=runs_done)[0]
                 say(f"{e.name}: {c.legs * c.modules} single failures")
                 f = single_failures(c, evaluate, transitions, base.distance)
                 say(f"{e.name}: leg rotations and perturbed starts")
                 spread = rotation_spread(c, evaluate, transitions)
                 perturbed = perturbation_spread(c, e.loaded.spec, transitions, samples=3)
+                done(1 + 3)
                 if multi_samples > 0:
                     say(f"{e.name}: {multi_samples} random sets of K failed modules per K")
                     multi[e.name] = {
@@ -169,13 +183,35 @@ def build_report(
         }
         fileio.write_text(tmp / "index.html", _render(context))
         fileio.write_json(tmp / "report.json", {k: v for k, v in context.items()})
-        _replace_dir(tmp, out)
-    except BaseException:
-        import shutil
-
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out / "index.html"
+
+
+MARKER = b'<meta name="generator" content="bstool report'
+_REPORT_FILE = re.compile(r"^(index\.html|report\.json|[\w.-]+\.png)$")
+
+
+def is_report(folder: Path) -> bool:
+    """A folder this command wrote: its index.html carries the marker and nothing else is
+    there but the report's own files (so replacing it loses nothing of the user's)."""
+    index = folder / "index.html"
+    try:
+        with open(index, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return False
+    names = [p.name for p in folder.iterdir()]
+    return MARKER in head and all(_REPORT_FILE.match(n) for n in names)
+
+
+def simulations(
+    c: Controller, transitions: int, extrapolate: int, multi_samples: int, multi_k: Sequence[int]
+) -> int:
+    """How many runs :func:`build_report` makes for one controller (the progress bar's total)."""
+    cells = c.legs * c.modules
+    runs = 2 + (extrapolate < transitions) + cells + c.legs + 4  # ... rotations, perturbed
+    if multi_samples > 0:
+        runs += sum(min(multi_samples, math.comb(cells, k)) for k in multi_k)
+    return runs
 
 
 def _by_model(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -202,17 +238,3 @@ def _render(context: dict[str, Any]) -> str:
         keep_trailing_newline=True,
     )
     return env.get_template("report.html.j2").render(**context)
-
-
-def _replace_dir(new: Path, target: Path) -> None:
-    """Put ``new`` where ``target`` is; an old report is removed only once the new one exists."""
-    import shutil
-
-    if target.exists():
-        old = target.with_name(f".{target.name}.old")
-        shutil.rmtree(old, ignore_errors=True)
-        os.replace(target, old)
-        os.replace(new, target)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.replace(new, target)

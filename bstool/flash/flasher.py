@@ -170,34 +170,81 @@ def read_ports_file(path: str | Path) -> dict[ModuleId, str]:
     return {parse_module(k): v for k, v in data.items()}
 
 
+def check_module(
+    port: str | serial.Serial,
+    plan: ModulePlan,
+    *,
+    baud: int = P.BAUD,
+    timing: Timing | None = None,
+) -> str | None:
+    """Whether the stamp on ``port`` runs ``plan``: None if its start-up announcement names
+    the plan's module and controller, else what was heard instead (a reason to re-flash)."""
+    if plan.module is None or not plan.controller_hash:
+        return "the build names no module and controller to check the stamp against"
+    timing = timing or Timing()
+    want = f"{plan.label} {plan.controller_hash[:8]}"
+    try:
+        ser = open_port(port, baud=baud, timeout=timing.reply) if isinstance(port, str) else port
+    except DeviceError as exc:
+        return f"its port cannot be opened ({exc.message})"
+    try:
+        prog = Programmer(ser, name=port if isinstance(port, str) else str(ser.port), timing=timing)
+        prog.reset_to_run()  # restart the program: it announces itself first
+        heard = prog.listen()
+    except (OSError, serial.SerialException) as exc:
+        return f"its port failed ({exc})"
+    finally:
+        if isinstance(port, str):
+            ser.close()
+    if heard is None:
+        return f"the stamp does not announce {want} (nothing heard)"
+    leg, mod, h8 = heard
+    if (leg, mod) != tuple(plan.module) or h8 != plan.controller_hash[:8]:
+        return f"the stamp announces L{leg}.M{mod} {h8}, not {want}"
+    return None
+
+
 def flash_all(
     target: Target,
     *,
     port_for: Callable[[ModulePlan], str | None],
     flash: Callable[[str, ModulePlan], ModuleReport],
     log: Callable[[str], None] | None = None,
+    check: Callable[[str, ModulePlan], str | None] | None = None,
+    force: bool = False,
 ) -> WalkResult:
     """Walk the modules in flashing order, resuming after those already flashed.
 
     ``port_for`` returns the port for a module (it may prompt) or None to skip it; raise
     :class:`KeyboardInterrupt` or return ``"quit"`` to stop. Progress goes to the build dir.
+
+    The progress file alone is never trusted: a module it calls flashed is skipped only if
+    ``check(port, plan)`` confirms the stamp runs it (returns None); otherwise (no ``check``,
+    another stamp on the cable, a fresh stamp) it is flashed again, saying why. ``force``
+    ignores the progress file.
     """
     log = log or (lambda _m: None)
-    saved = _load_progress(target.build_dir, target.controller_hash)
+    saved = {} if force else _load_progress(target.build_dir, target.controller_hash)
     result = WalkResult({}, {}, {})
     for plan in target.modules:
         label = plan.label
-        if saved.get(label, {}).get("status") == "flashed":
-            result.status[label] = "flashed earlier"
-            continue
+        earlier = saved.get(label, {}).get("status") == "flashed"
         port = port_for(plan)
         if port == "quit":
             break
         if port is None:
             result.status[label] = "skipped"
-            saved[label] = {"status": "skipped"}
-            _save_progress(target.build_dir, target.controller_hash, saved)
+            if not earlier:  # a skip does not forget a flash
+                saved[label] = {"status": "skipped"}
+                _save_progress(target.build_dir, target.controller_hash, saved)
             continue
+        if earlier:
+            why = check(port, plan) if check else "the stamp cannot be checked (not listening)"
+            if why is None:
+                result.status[label] = "flashed earlier"
+                result.messages[label] = "(checked: its program announces itself)"
+                continue
+            log(f"{label}: {PROGRESS_FILE} says flashed, but {why}: flashing it again")
         saved[label] = {"status": "incomplete", "port": port, "time": time.time()}
         _save_progress(target.build_dir, target.controller_hash, saved)
         try:

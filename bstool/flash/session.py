@@ -220,6 +220,13 @@ class Programmer:
                 f"nothing echoed on {self.name} after {len(outcomes)} attempts",
                 hint="check the module's power, the cable, and that this is its port",
             )
+        silent = outcomes.count("noecho")
+        if silent:  # a stall: silence, plus a late or stray byte in another attempt
+            raise NoEchoError(
+                f"no answer on {self.name} for {self.timing.reply * 1000:.0f} ms in {silent} of "
+                f"{len(outcomes)} attempts (a stray byte in the others)",
+                hint="check the module's power, the cable, and that this is its port",
+            )
         other = self._probe_others()
         if other:
             raise WrongStampError(
@@ -274,10 +281,17 @@ class Programmer:
         echo = self._read(P.RECORD_SIZE, wire + self.timing.reply)
         if len(echo) < P.RECORD_SIZE:
             kind = "noecho" if not echo else "short"
-            raise _Trouble(kind, f"{len(echo)} of {P.RECORD_SIZE} bytes echoed", resync=True)
+            waited = (wire + self.timing.reply) * 1000
+            raise _Trouble(
+                kind,
+                f"{len(echo)} of {P.RECORD_SIZE} bytes echoed, then no answer for {waited:.0f} ms",
+                resync=True,
+            )
         ack = self._read(1, self.timing.ack)
         if not ack:
-            raise _Trouble("noack", f"no acknowledgement within {self.timing.ack:g} s", resync=True)
+            waited = self.timing.ack * 1000
+            detail = f"no acknowledgement: no answer for {waited:.0f} ms"
+            raise _Trouble("noack", detail, resync=True)
         if echo != record:
             at = next(i for i in range(P.RECORD_SIZE) if echo[i] != record[i])
             raise _Trouble(

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from bstool import fileio
+from bstool.errors import InputError
 from bstool.sim.simulator import SimResult
 
 
@@ -39,5 +40,8 @@ def plot_paths(
     ax.grid(True, linewidth=0.3)
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
-    with fileio.atomic_open(path, "wb") as fh:
-        fig.savefig(fh, format="png")
+    try:
+        with fileio.atomic_open(path, "wb") as fh:
+            fig.savefig(fh, format="png")
+    except OSError as exc:  # checked before the work; this is the disk filling up meanwhile
+        raise InputError(f"cannot write the plot {path}: {exc.strerror or exc}") from None

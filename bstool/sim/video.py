@@ -7,6 +7,8 @@ Call :func:`bstool.sim.gl.configure_headless_gl` before mujoco is first imported
 from __future__ import annotations
 
 import os
+import re
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -18,6 +20,8 @@ from bstool import fileio
 from bstool.errors import InputError
 from bstool.sim.simulator import SimResult, Simulator
 
+#: scratch folders are named with the writer's pid, so the next run removes a killed run's
+SCRATCH_PREFIX = "bstool-video-"
 FPS = 25  # 40 ms per frame = 20 steps of 2 ms: frames fall exactly on physics steps
 WIDTH, HEIGHT = 480, 272  # multiples of 16 for H.264
 
@@ -58,7 +62,8 @@ class VideoRecorder:
         self.disc = model.body("disc").id
         # ffmpeg needs a file name: encode into a private temporary directory, then write the
         # target atomically with fileio (videos are a few MB).
-        self._tmp = tempfile.TemporaryDirectory(prefix="bstool-video-")
+        clean_stale_scratch()
+        self._tmp = tempfile.TemporaryDirectory(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-")
         self._scratch = Path(self._tmp.name) / "run.mp4"
         self._writer = imageio_ffmpeg.write_frames(
             str(self._scratch),
@@ -97,6 +102,31 @@ class VideoRecorder:
 
     def __exit__(self, exc_type: object, *rest: object) -> None:
         self.close(keep=exc_type is None)
+
+
+def clean_stale_scratch(folder: str | os.PathLike[str] | None = None) -> list[Path]:
+    """Remove the scratch folders that killed video writers left in the temp folder."""
+    root = Path(folder if folder is not None else tempfile.gettempdir())
+    pattern = re.compile(rf"^{re.escape(SCRATCH_PREFIX)}(\d+)-")
+    removed = []
+    for entry in root.iterdir() if root.is_dir() else ():
+        m = pattern.match(entry.name)
+        if m and entry.is_dir() and not entry.is_symlink() and not _alive(int(m.group(1))):
+            shutil.rmtree(entry, ignore_errors=True)
+            removed.append(entry)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def render_video(
