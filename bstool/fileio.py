@@ -90,11 +90,15 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO[An
     A crash, an exception or Ctrl-C inside the block leaves ``path`` as it was.
     """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    outputs.clean_stale(target)  # what a killed writer of this file left
-    fd, tmp = tempfile.mkstemp(
-        prefix=outputs.temp_file_prefix(target), suffix=".tmp", dir=target.parent
-    )
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        outputs.clean_stale(target)  # what a killed writer of this file left
+        fd, tmp = tempfile.mkstemp(
+            prefix=outputs.temp_file_prefix(target), suffix=".tmp", dir=target.parent
+        )
+    except OSError as exc:  # a parent that is a file, no permission, a full disk...
+        outputs.check_file(target)  # says which, as one line
+        raise InputError(f"cannot write {target}: {exc.strerror or exc}") from None
     os.chmod(tmp, 0o666 & ~outputs.umask())  # mkstemp makes 0600; give what open() would
     try:
         encoding = None if "b" in mode else "utf-8"

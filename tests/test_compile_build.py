@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from bstool import buildfile
 from bstool.cli import main
 from bstool.compile import build, compile_controller, templates_dir
 from bstool.compile.calibration import Servo, parse_calibration
@@ -252,3 +253,30 @@ def test_nn_manifest_lists_bypass_wires_and_timing(tmp_path: Path) -> None:
         assert m["free_exchange_ms"] <= m["exchange_allowance_ms"] < m["transition_ms"]
     wiring = (tmp_path / "b" / "WIRING.md").read_text()
     assert "bypass" in wiring and "P13" in wiring
+
+
+def test_compile_output_rules(tmp_path: Path) -> None:
+    """A folder is made with the umask, a foreign one needs --force, a path under a file or
+    around the input is refused before any work (one line, exit 2)."""
+    import os
+    import stat
+
+    ctrl = tmp_path / "c.json"
+    ctrl.write_text(CA.read_text())
+    old = os.umask(0o022)
+    try:
+        assert main(["compile", str(ctrl), "-o", str(tmp_path / "b"), "-q"]) == 0
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "b").stat().st_mode) == 0o755
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    assert main(["compile", str(ctrl), "-o", str(mine), "-q"]) == 2
+    assert (mine / "notes.txt").read_text() == "keep"
+    assert main(["compile", str(ctrl), "-o", str(mine), "-q", "--force"]) == 0
+    assert buildfile.is_build(mine)
+    (tmp_path / "file").write_text("x")
+    assert main(["compile", str(ctrl), "-o", str(tmp_path / "file" / "b"), "-q"]) == 2
+    assert main(["compile", str(ctrl), "-o", str(tmp_path), "-q", "--force"]) == 2
+    assert ctrl.is_file()

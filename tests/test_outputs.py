@@ -127,3 +127,10 @@ def test_a_kill_between_the_two_renames_gives_the_old_folder_back(tmp_path: Path
     outputs.clean_stale(tmp_path / "out")
     assert (tmp_path / "out" / "best.json").read_text() == "keep"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_an_atomic_write_that_cannot_start_is_an_input_error(tmp_path: Path) -> None:
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(InputError, match="is a file, not a folder"):
+        fileio.write_text(tmp_path / "f" / "out.json", "{}")
+    assert (tmp_path / "f").read_text() == "x"

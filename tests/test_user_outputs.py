@@ -19,6 +19,8 @@ from bstool.cli import main
 
 TOKENIZER_VECTORS = Path(__file__).parent / "vectors" / "tokenizer"
 PROJECT = TOKENIZER_VECTORS / "multi_robot_rules"
+# twin --video is checked before the build is even read
+BUILD = Path(__file__).parent / "golden" / "compile" / "ca1d"  # not a build: twin must not care
 HISTORY = "generation,best,mean,population,evaluations\n0,0.02,0.01,main,10\n"
 
 
@@ -57,6 +59,10 @@ def _cases(ctrl: Path, run: Path, bad: Path) -> dict[str, list[str]]:
         "plot-history -o": ["plot-history", str(run), "-o", str(bad / "h.png")],
         "report -o": ["report", str(ctrl), "-o", str(bad / "report")],
         "tokenize -o": ["tokenize", str(PROJECT / "multi_robot_rules.bsx"), "-o", str(bad / "t")],
+        "compile -o": ["compile", str(ctrl), "-o", str(bad / "build")],
+        "evolve --out": ["evolve", "ca1d", "--pop", "4", "--gens", "2", "--out", str(bad / "e")],
+        "demo --out": ["demo", "--out", str(bad / "d")],
+        "twin --video": ["twin", str(BUILD), "-T", "1", "--video", str(bad / "t.mp4")],
     }
 
 

@@ -36,6 +36,9 @@ import click
     metavar="L.M",
     help="Compile only this module (leg.module, 0 = lead); repeatable.",
 )
+@click.option(
+    "--force", is_flag=True, help="Replace a non-empty output folder that is not a bstool build."
+)
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 def command(
     controller: str,
@@ -43,6 +46,7 @@ def command(
     calibration: str | None,
     period: float | None,
     modules: tuple[str, ...],
+    force: bool,
     quiet: bool,
 ) -> None:
     """Compile CONTROLLER (best.json) into one PBASIC program per module (docs/compile.md):
@@ -58,6 +62,7 @@ def command(
         period=period,
         modules=modules,
         progress=not quiet and sys.stderr.isatty(),
+        force=force,
     )
     if quiet:
         return

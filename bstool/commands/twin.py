@@ -104,7 +104,10 @@ def command(
     if video and no_physics:
         raise click.UsageError("--video needs physics: drop --no-physics")
     if video:
+        from bstool import outputs
         from bstool.sim.gl import configure_headless_gl
+
+        outputs.check_file(video, "video")  # before the run, not after it
 
         configure_headless_gl()  # before mujoco is imported
     from tqdm import tqdm

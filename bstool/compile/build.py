@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import shutil
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,7 +11,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from bstool import buildfile, fileio
+from bstool import buildfile, fileio, outputs
 from bstool.compile import describe
 from bstool.compile.calibration import DEFAULT, Calibration, load_calibration
 from bstool.compile.plan import ModulePlan, build_plans, estimates, exchange_ms
@@ -61,11 +59,16 @@ def compile_controller(
     modules: Sequence[str] = (),
     tokenize: bool = True,
     progress: bool = False,
+    force: bool = False,
 ) -> BuildResult:
     """Compile ``controller`` into ``out_dir`` (replaced as a whole, never half-written).
 
+    ``out_dir`` may be new, empty, or a previous build; anything else is refused unless
+    ``force`` (and never when it holds the controller or calibration file).
     ``tokenize=False`` writes the PBASIC sources only (no slot images: flash and the twin
     refuse such a build); the golden tests use it."""
+    inputs = (controller,) + ((calibration,) if calibration is not None else ())
+    _check_output(Path(out_dir), force=force, protect=inputs)  # before any work
     ctrl = load_controller(controller)
     return compile_loaded(
         ctrl,
@@ -76,6 +79,8 @@ def compile_controller(
         modules=modules,
         tokenize=tokenize,
         progress=progress,
+        force=force,
+        protect=inputs,
     )
 
 
@@ -89,9 +94,12 @@ def compile_loaded(
     modules: Sequence[str] = (),
     tokenize: bool = True,
     progress: bool = False,
+    force: bool = False,
+    protect: Sequence[str | os.PathLike[str]] = (),
 ) -> BuildResult:
     out = Path(out_dir)
-    _check_output(out)
+    protect = (*protect, *((calibration,) if calibration is not None else ()))
+    _check_output(out, force=force, protect=protect)
     full_hash = controller_hash(ctrl)
     calib: Calibration = (
         DEFAULT if calibration is None else load_calibration(calibration, ctrl.legs, ctrl.modules)
@@ -207,12 +215,13 @@ def _overflow(plan: ModulePlan, slot: int) -> int:
     return max(0, int(image.program_bytes) + data - SLOT_BYTES)
 
 
-def _check_output(out: Path) -> None:
+def _check_output(
+    out: Path, *, force: bool = False, protect: Sequence[str | os.PathLike[str]] = ()
+) -> None:
     """Refuse to replace anything but a previous build (checked before any work): a folder is
-    a build when its manifest.json says so (format bstool.build/...), not because it has one."""
-    if out.exists() and not out.is_dir():
-        raise InputError(f"output {out} exists and is not a folder", hint="choose another -o")
-    if out.is_dir() and any(out.iterdir()) and not buildfile.is_build(out):
+    a build when its manifest.json says so (format bstool.build/...), not because it has one.
+    A path that cannot be written (its parent a file, no permission) is refused here too."""
+    if out.is_dir() and any(out.iterdir()) and not force and not buildfile.is_build(out):
         has = (
             "a manifest.json that is not a bstool build's"
             if (out / buildfile.MANIFEST_FILE).exists()
@@ -220,8 +229,10 @@ def _check_output(out: Path) -> None:
         )
         raise InputError(
             f"output folder {out} is not empty and holds {has}",
-            hint="choose an empty or new folder with -o; bstool replaces only its own builds",
+            hint="choose an empty or new folder with -o (bstool replaces only its own builds), "
+            "or add --force to replace it",
         )
+    outputs.check_dir(out, "output folder", force=True, protect=tuple(protect))
 
 
 def _write_atomically(
@@ -232,11 +243,7 @@ def _write_atomically(
     controller: dict[str, Any],
 ) -> None:
     """Write everything into a fresh folder beside ``out``, then swap it in with renames."""
-    _check_output(out)
-    parent = out.resolve().parent
-    parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=parent))
-    try:
+    with outputs.staged_dir(out) as tmp:  # swapped in whole, with the user's umask
         for res in results:
             folder = tmp / "modules" / res.plan.dirname
             folder.mkdir(parents=True)
@@ -249,19 +256,3 @@ def _write_atomically(
         fileio.write_text(tmp / buildfile.MANIFEST_FILE, buildfile.dumps(manifest))
         fileio.write_text(tmp / buildfile.WIRING_FILE, wiring)
         fileio.write_text(tmp / buildfile.CONTROLLER_FILE, buildfile.dumps_json(controller))
-        old = None
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=parent))
-            os.replace(out, old / "build")
-        try:
-            os.replace(tmp, out)
-        except BaseException:
-            if old is not None:  # put the previous build back
-                os.replace(old / "build", out)
-                old.rmdir()
-            raise
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
