@@ -54,6 +54,7 @@ BINARY = {
 COMPARE = {"=": Binary.EQ, "<>": Binary.NE, "<": Binary.LT, ">": Binary.GT, "<=": Binary.LE,
            ">=": Binary.GE}  # fmt: skip
 LOGIC = {"AND": Binary.AND, "OR": Binary.OR, "XOR": Binary.XOR}
+LOOKDOWN_COMPARE_BASE = 0x18  # LOOKDOWN's 3-bit field: comparison code - $18 (bs2sx.md §6)
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,10 @@ class Stmt:
     args: list[Item]
     fields: dict[str, Any] = field(default_factory=dict)
     goto: str | None = None  # label whose address the "target" field must hold
+    more: list[Stmt] = field(default_factory=list)  # further instructions of the same row
+
+    def ops(self) -> list[Stmt]:
+        return [self, *self.more]
 
 
 def _variable(size: int, number: int, indexed: bool = False, write: bool = False) -> Item:
@@ -146,7 +151,7 @@ def statements(draw: st.DrawFn, labels: list[str]) -> Stmt:
     kind = draw(
         st.sampled_from(
             ["pin", "pause", "let", "let", "goto", "if", "read", "write", "random", "lookup",
-             "pulsout", "stop"]
+             "pulsout", "stop", "get", "put", "lookdown", "branch", "gosub", "words"]
         )
     )  # fmt: skip
     if kind == "pin":
@@ -205,7 +210,78 @@ def statements(draw: st.DrawFn, labels: list[str]) -> Stmt:
         return Stmt(
             f"PULSOUT {pin.text}, {duration.text}", "PULSOUT", [*duration.items, *pin.items]
         )
+    if kind == "get":
+        where = draw(expressions(1))
+        text, _, write = draw(targets())
+        return Stmt(f"GET {where.text}, {text}", "GET", list(where.items), {"write": write})
+    if kind == "put":
+        where, value = draw(expressions(1)), draw(expressions(1))
+        return Stmt(f"PUT {where.text}, {value.text}", "PUT", [*where.items, *value.items])
+    if kind == "lookdown":
+        value = draw(expressions(1))
+        cmp = draw(st.sampled_from(["", *sorted(COMPARE)]))
+        values = draw(st.lists(expressions(1), min_size=1, max_size=4))
+        text, _, write = draw(targets())
+        listed = ", ".join(v.text for v in values)
+        return Stmt(
+            f"LOOKDOWN {value.text}, {cmp} [{listed}], {text}",
+            "LOOKDOWN",
+            list(value.items),
+            {
+                "compare": int(COMPARE[cmp or "="]) - LOOKDOWN_COMPARE_BASE,
+                "values": [list(v.items) for v in values],
+                "write": write,
+            },
+        )
+    if kind == "branch":
+        index = draw(expressions(1))
+        chosen = draw(st.lists(st.sampled_from(labels), min_size=1, max_size=4))
+        return Stmt(
+            f"BRANCH {index.text}, [{', '.join(chosen)}]",
+            "BRANCH",
+            list(index.items),
+            {"targets": chosen},  # labels: resolved to addresses by the test
+        )
+    if kind == "gosub":
+        return Stmt(f"GOSUB {draw(st.sampled_from(labels))}", "GOSUB", [])
+    if kind == "words":  # WORD transfers: two instructions, low byte then high byte
+        op = draw(st.sampled_from(["READ", "WRITE", "GET", "PUT"]))
+        where = draw(expressions(1))
+        plus_one = [*where.items, ("c", 1), ("b", int(Binary.ADD))]
+        if op in ("READ", "GET"):  # into a whole Word: its high byte is byte 2 * word + 1
+            name = draw(st.sampled_from(["wv", "W5"]))
+            number = READABLE[name][1]
+            low = Stmt("", op, list(where.items), {"write": [_variable(WORD, number, write=True)]})
+            high = Stmt("", op, plus_one, {"write": [_variable(BYTE, 2 * number + 1, write=True)]})
+            return Stmt(f"{op} {where.text}, WORD {name}", op, low.args, low.fields, more=[high])
+        value = draw(expressions(1))
+        shifted = [*value.items, ("c", 8), ("b", int(Binary.SHR))]
+        if op == "WRITE":
+            first, second = [*value.items, *where.items], [*shifted, *plus_one]
+        else:
+            first, second = [*where.items, *value.items], [*plus_one, *shifted]
+        return Stmt(f"{op} {where.text}, WORD {value.text}", op, first, more=[Stmt("", op, second)])
     return Stmt("STOP", "STOP", [])
+
+
+@st.composite
+def for_loops(draw: st.DrawFn, labels: list[str]) -> list[Stmt]:
+    """FOR v = a TO b [STEP s] / body / NEXT: the FOR row is ``v = a``; NEXT pushes b, a and
+    carries v's read item and the step, v's write item and the address of the body."""
+    text, read, write = draw(targets())
+    first, limit = draw(expressions(1)), draw(expressions(1))
+    step = draw(st.one_of(st.none(), expressions(1)))
+    head = f"FOR {text} = {first.text} TO {limit.text}" + (f" STEP {step.text}" if step else "")
+    body = draw(st.lists(statements(labels), min_size=1, max_size=3))
+    steps = list(step.items) if step else [("c", 1)]
+    nxt = Stmt(
+        "NEXT",
+        "NEXT",
+        [*limit.items, *first.items],
+        {"read": [*read, *steps], "write": write},
+        goto="<body>",
+    )
+    return [Stmt(head, "DONE", [*first.items, *write]), *body, nxt]
 
 
 @dataclass
@@ -217,9 +293,14 @@ class Program:
 
 @st.composite
 def programs(draw: st.DrawFn) -> Program:
-    count = draw(st.integers(1, 10))
     labels = [f"L{n}" for n in range(draw(st.integers(1, 3)))]
-    stmts = [draw(statements(labels)) for _ in range(count)]
+    stmts: list[Stmt] = []
+    for _ in range(draw(st.integers(1, 10))):
+        if draw(st.integers(0, 7)) == 0:
+            stmts += draw(for_loops(labels))
+        else:
+            stmts.append(draw(statements(labels)))
+    count = len(stmts)
     where = {label: draw(st.integers(0, count - 1)) for label in labels}
     lines = [HEAD + DECLARATIONS]
     i = 0
@@ -228,7 +309,13 @@ def programs(draw: st.DrawFn) -> Program:
             if where[label] == i:
                 lines.append(f"{label}:\n")
         # now and then two statements share a line (the second after ':')
-        if i + 1 < count and not any(where[lb] == i + 1 for lb in labels) and draw(st.booleans()):
+        joinable = not stmts[i].text.startswith("FOR") and stmts[i].text != "NEXT"
+        if (
+            joinable
+            and i + 1 < count
+            and not any(where[lb] == i + 1 for lb in labels)
+            and draw(st.booleans())
+        ):
             lines.append(f"  {stmts[i].text} : {stmts[i + 1].text}\n")
             i += 2
             continue
@@ -259,14 +346,32 @@ def test_accepted_programs_decode_back_to_their_statements(program: Program) -> 
     assert len(rows) == len(program.stmts)
     reader = BitReader(slot.eeprom)
     address = {label: rows[i][1] for label, i in program.labels_before.items()}
-    for (_, bit, _), stmt in zip(rows, program.stmts, strict=True):
-        ins = decode_at(reader, bit)
-        assert ins.name == stmt.name, stmt.text
-        assert ins.args == stmt.args, stmt.text
-        for key, want in stmt.fields.items():
-            assert ins.fields[key] == want, stmt.text
-        if stmt.goto is not None:
-            assert ins.fields["target"] == address[stmt.goto], stmt.text
+    bodies = []  # FOR rows: their NEXT jumps to the row after them
+    gosubs = 0
+    for row, ((_, bit, bits), stmt) in enumerate(zip(rows, program.stmts, strict=True)):
+        if stmt.text.startswith("FOR"):
+            bodies.append(rows[row + 1][1])
+        at = bit
+        for op in stmt.ops():
+            ins = decode_at(reader, at)
+            assert ins.name == op.name, stmt.text
+            assert ins.args == op.args, stmt.text
+            for key, want in op.fields.items():
+                got = ins.fields[key]
+                if key == "targets":
+                    want = [address[label] for label in want]
+                assert got == want, stmt.text
+            if op.goto == "<body>":
+                assert ins.fields["target"] == bodies.pop(), stmt.text
+            elif op.goto is not None:
+                assert ins.fields["target"] == address[op.goto], stmt.text
+            if op.name == "GOSUB":
+                gosubs += 1
+                assert ins.fields["id"] == gosubs
+                reader.pos = gosubs * ADDRESS_BITS
+                assert reader.address() == ins.end  # the return table entry
+            at = ins.end
+        assert at <= bit + bits
     assert slot.eeprom[:3] == bytes([7, 8, 9]) and slot.data_bytes == 3
 
 
@@ -278,14 +383,18 @@ def test_listing_bit_addresses_add_up(program: Program) -> None:
         return
     rows = slot.statements
     reader = BitReader(slot.eeprom)
-    assert reader.address() == rows[0][1] == ADDRESS_BITS  # start address, no GOSUB table
-    for (_, bit, bits), after in zip(rows, [*rows[1:], None], strict=True):
-        ins = decode_at(reader, bit)
+    gosubs = sum(op.name == "GOSUB" for stmt in program.stmts for op in stmt.ops())
+    # start address: after the start field and one return address per GOSUB
+    assert reader.address() == rows[0][1] == ADDRESS_BITS * (gosubs + 1)
+    for (_, bit, bits), after, stmt in zip(rows, [*rows[1:], None], program.stmts, strict=True):
+        end = bit
+        for _ in stmt.ops():
+            end = decode_at(reader, end).end
         if after is not None:
-            assert bit + bits == after[1] == ins.end
+            assert bit + bits == after[1] == end
         else:  # the last row also holds the END the tokenizer appends
-            end = decode_at(reader, ins.end)
-            assert end.name == "END" and end.end == bit + bits
+            final = decode_at(reader, end)
+            assert final.name == "END" and final.end == bit + bits
     assert slot.program_bytes == -(-(rows[-1][1] + rows[-1][2]) // 8)
 
 

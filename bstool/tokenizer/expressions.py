@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from bstool.tokenizer import tokens
 from bstool.tokenizer.diagnostics import Failure
-from bstool.tokenizer.image import Image
+from bstool.tokenizer.image import TOTAL_BITS, Image
 from bstool.tokenizer.lexer import OP_EQ, OP_NEG, OP_SUB, Element, K
 
 PAREN = 0x80  # '(' marker on the operator stack
@@ -193,10 +193,12 @@ class Compiler:
         # Parallax writes an expression one 16-bit word of its buffer at a time, and checks
         # each write on its own: "EEPROM full" (127) only when that word would run past the
         # end, so a word that reaches DATA is "Data occupies same location" (124) first.
+        # (When it all fits, one write finds the same DATA byte first.)
         length, value = bits.length, bits.value
-        while length > _EMIT_WORD:
-            length -= _EMIT_WORD
-            self.emit(_EMIT_WORD, value >> length)
+        if self.image.pos + length > TOTAL_BITS:
+            while length > _EMIT_WORD:
+                length -= _EMIT_WORD
+                self.emit(_EMIT_WORD, value >> length)
         if length:
             self.emit(length, value)
 
