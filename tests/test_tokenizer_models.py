@@ -213,3 +213,10 @@ def test_huge_data_tables_are_rejected_or_accepted() -> None:
     assert error(f"T DATA {over}\n")[0] == 114
     huge = ", ".join(str(i % 256) for i in range(16000))
     assert error(f"T DATA {huge}\n")[0] == 107
+
+
+def test_reading_past_the_last_element_reports_the_element_read_last() -> None:
+    """Parallax's reader leaves the caller's element as it was past the end: SELECT as the
+    last line wants a CASE after its line end and reports 179 at that line end."""
+    assert error("b VAR Byte\nSELECT b\n") == (179, 4, 9)
+    assert error("b VAR Byte\nSELECT b\nc VAR Byte\n") == (179, 4, 9)  # (cancelled after)

@@ -138,10 +138,10 @@ class Compiler:
                 el = Element(kind, value, el.start, el.length, el.name)
             self.err = (el.start, el.length)
             return el
+        # Past the last element Parallax's reader returns an end but leaves the caller's
+        # element as it was (its start stays the error position): the element read last.
         self.idx = idx
-        end = elements[-1].start + elements[-1].length if elements else 0
-        self.err = (end, 0)
-        return Element(K.END, 0, end, 0)
+        return Element(K.END, 0, *self.err)
 
     def peek(self) -> Element:
         here, err = self.idx, self.err
