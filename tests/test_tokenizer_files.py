@@ -105,3 +105,15 @@ def test_tokenize_command_reports_special_and_huge_files(
     assert code == InputError.exit_code
     assert str(path) in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+@posix_only
+def test_unreadable_source_is_an_input_error_with_a_hint(tmp_path: Path) -> None:
+    if os.geteuid() == 0:
+        pytest.skip("root reads any file")
+    path = tmp_path / "secret.bsx"
+    path.write_text(HEAD)
+    path.chmod(0)
+    with pytest.raises(InputError) as info:
+        tokenize_file(path)
+    assert str(path) in info.value.message and info.value.hint

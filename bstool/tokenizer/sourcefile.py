@@ -47,7 +47,7 @@ def read_source(path: str | os.PathLike[str]) -> str:
             f"source {p} is a directory, expected a .bsx file", hint="name a PBASIC file"
         ) from None
     except OSError as exc:
-        raise InputError(f"cannot read {p}: {exc.strerror or exc}") from None
+        raise _unreadable(p, exc) from None
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
@@ -60,7 +60,7 @@ def read_source(path: str | os.PathLike[str]) -> str:
         with os.fdopen(os.dup(fd), "rb") as handle:  # (O_NONBLOCK: no effect on a file)
             data = handle.read(MAX_SOURCE_BYTES + 1)
     except OSError as exc:
-        raise InputError(f"cannot read {p}: {exc.strerror or exc}") from None
+        raise _unreadable(p, exc) from None
     finally:
         os.close(fd)
     if len(data) > MAX_SOURCE_BYTES:  # grew while being read
@@ -72,4 +72,11 @@ def _too_large(p: Path, size: int) -> InputError:
     return InputError(
         f"source {p} has {size} bytes, more than the {MAX_SOURCE_BYTES} a PBASIC source may have",
         hint="a BS2sx slot holds 2048 bytes; split the program or its tables across slots",
+    )
+
+
+def _unreadable(p: Path, exc: OSError) -> InputError:
+    return InputError(
+        f"cannot read {p}: {exc.strerror or exc}",
+        hint="check that the file exists and that you may read it",
     )
