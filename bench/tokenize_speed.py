@@ -6,6 +6,13 @@ untimed; a CA program is a project of 3 slots) and the 30 shared tokenizer vecto
 must fail included: error paths cost time too).
 
     python bench/tokenize_speed.py [--baseline DIR] [FILE.bsx ...]
+    python bench/tokenize_speed.py --scaling
+
+``--scaling`` (also run after the default set) times long tables, the programs users write
+(and the inputs that used to take minutes): a LOOKUP list, a DATA list and a DATA table of one
+item per line, each at 1x, 2x, 4x and 8x the size (about 9 to 72 KB; the larger ones are
+rejected: the slot or the element list is full). Cost must grow linearly with the source:
+the figures show time per KB and the ratio to 1x.
 
 ``--baseline DIR`` times, side by side in the same run, another copy of the package: DIR must
 hold a ``bstool`` folder (e.g. a copy of an older tree: ``cp -r bstool /tmp/old/``). Each
@@ -90,14 +97,67 @@ def _compare(
         print(f"tokenize {label}: current is {ratio:.2f}x the speed of the baseline (CPU)")
 
 
+HEAD = "' {$STAMP BS2sx}\n' {$PBASIC 2.5}\n"
+SCALING = {  # name -> items at 1x -> source
+    "LOOKUP list": lambda n: (
+        HEAD
+        + "x VAR Word\nLOOKUP 0, ["
+        + ", ".join(str((i * 7919) % 65536) for i in range(n))
+        + "], x\n"
+    ),
+    "DATA list": lambda n: HEAD + "T DATA " + ", ".join(str(i % 256) for i in range(n)) + "\n",
+    "DATA lines": lambda n: HEAD + "".join(f"DATA {i % 256} ' item {i}\n" for i in range(n // 2)),
+    # accepted at every size (the whole source is read): a full table and its commentary
+    "commented": lambda n: (
+        HEAD
+        + "".join(f"' rule {i}: neighbours {i % 16} {i % 7}\n" for i in range(n // 4))
+        + "T DATA "
+        + ", ".join(str(i % 256) for i in range(2000))
+        + "\n"
+    ),
+}
+SCALING_ITEMS = 1300  # about 9 KB of source at 1x
+
+
+def _scaling() -> None:
+    """Time vs source size for long tables at 1x, 2x, 4x, 8x (best of ROUNDS, CPU time)."""
+    from bstool.errors import SourceError
+    from bstool.tokenizer import tokenize_source
+
+    for name, make in SCALING.items():
+        base = None
+        for factor in (1, 2, 4, 8):
+            text = make(SCALING_ITEMS * factor)
+            best = float("inf")
+            outcome = "accepted"
+            for _ in range(ROUNDS):
+                start = time.process_time()
+                try:
+                    tokenize_source(text, "table.bsx")
+                except SourceError as exc:
+                    outcome = f"rejected ({exc.code})"
+                best = min(best, time.process_time() - start)
+            kb = len(text) / 1024
+            base = base or best / kb
+            print(
+                f"scaling {name:11s} {factor}x: {kb:5.1f} KB in {best * 1000:6.2f} ms CPU, "
+                f"{best / kb * 1000:.3f} ms/KB ({best / kb / base:.2f}x the 1x rate), {outcome}"
+            )
+    print("scaling: target: ms/KB flat (linear cost), no table over 1 s")
+
+
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--baseline", type=Path, help="folder holding another bstool package")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--scaling", action="store_true", help="only the long-table figures")
     parser.add_argument("files", nargs="*", type=Path)
     args = parser.parse_args(argv)
     if args.worker:
         return _worker(args.files)
+    if args.scaling:
+        _scaling()
+        return 0
     if args.files:
         _compare(args.files, "files", args.baseline, parser)
     else:
@@ -113,6 +173,7 @@ def main(argv: list[str]) -> int:
         vectors = sorted(next(p for p in d.glob("*.bsx")) for d in VECTORS.iterdir() if d.is_dir())
         _compare(vectors, "vectors", args.baseline, parser)
     print("tokenize: target: 30 programs well under 1 s")
+    _scaling()
     return 0
 
 

@@ -11,7 +11,6 @@ EXIT                     GOTO after the innermost FOR or DO
 
 from __future__ import annotations
 
-from bstool.tokenizer.diagnostics import Failure
 from bstool.tokenizer.expressions import Bits
 from bstool.tokenizer.lexer import OP_EQ, K
 from bstool.tokenizer.statements import ADDR, MAX_EXITS, NEST_LIMIT, Block, Nest, Statements
@@ -289,15 +288,6 @@ class Blocks(Statements):
         self.condition(case_at, op)
         return self.expr
 
-    def _joined(self, left: Bits, right: Bits, op: int) -> Bits:
-        """The condition ``left op right`` from two compiled conditions."""
-        try:
-            self.expr = left.add(1, 1).join(right)
-        except Failure:
-            raise self.fail(144) from None
-        self.item(op)
-        return self.expr
-
     def op_case(self) -> None:
         """CASE list: IF (any item matches), body; GOTO next CASE; a new CASE first closes the
         previous body with a GOTO to the end of the SELECT."""
@@ -328,11 +318,11 @@ class Blocks(Statements):
                 low = self._case_test(block.exp_idx, item_at, int(Binary.GE))
                 self.expect(K.TO, 152)
                 high = self._case_test(block.exp_idx, self.idx, int(Binary.LE))
-                test = self._joined(low, high, int(Binary.AND))
+                test = self.append_expression(low, high, int(Binary.AND))
             else:
                 test = self._case_test(block.exp_idx, item_at, OP_EQ)
             if matches is not None:
-                test = self._joined(matches, test, int(Binary.OR))
+                test = self.append_expression(matches, test, int(Binary.OR))
             matches = test
             el = self.get()
             if el.kind is not K.COMMA:

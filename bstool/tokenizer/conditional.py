@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from bstool.tokenizer import tokens
 from bstool.tokenizer.declarations import Declarations
 from bstool.tokenizer.diagnostics import Failure
+from bstool.tokenizer.expressions import Bits
 from bstool.tokenizer.lexer import OP_EQ, K
 from bstool.tokenizer.tokens import Binary, Unary
 
@@ -239,20 +240,31 @@ class Conditional(Declarations):
             block.taking = True
 
     def _cc_case_value(self, block: _CCBlock) -> int:
-        """Value of a #CASE list: each item is ``value`` or ``low TO high``, OR-ed together."""
+        """Value of a #CASE list: each item is ``value`` or ``low TO high``, OR-ed together.
+
+        The items' expressions are joined as for a run-time CASE (append_expression), so a
+        list too long for the expression buffer is error 144 at the same place.
+        """
         result = 0
+        matches: Bits | None = None
         while True:
             start = self.idx
             is_range = self.case_item_is_range()
             self.idx = block.exp_idx
             if is_range:
                 low = self._cc_eval(start, int(Binary.GE))
+                low_bits = self.expr
                 self.expect(K.TO, 152)
                 start = self.idx
                 self.idx = block.exp_idx
                 result |= low & self._cc_eval(start, int(Binary.LE))
+                test = self.append_expression(low_bits, self.expr, int(Binary.AND))
             else:
                 result |= self._cc_eval(start, OP_EQ)
+                test = self.expr
+            if matches is not None:
+                test = self.append_expression(matches, test, int(Binary.OR))
+            matches = test
             el = self.get()
             if el.kind is not K.COMMA:
                 break

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from bstool.tokenizer import tokens
 from bstool.tokenizer.diagnostics import Failure
-from bstool.tokenizer.image import Image
+from bstool.tokenizer.image import TOTAL_BITS, Image
 from bstool.tokenizer.lexer import OP_EQ, OP_NEG, OP_SUB, Element, K
 
 PAREN = 0x80  # '(' marker on the operator stack
@@ -33,6 +33,9 @@ _CC_ILLEGAL = {
         tokens.Binary.REV,
     )
 }  # fmt: skip
+# Parallax counts the bits it appends (CASE lists) in a byte; see append_expression
+APPEND_COUNT_LIMIT = 255
+_EMIT_WORD = 16  # bits per word of Parallax's expression buffer
 _WIDTH = {0: 1, 1: 4, 2: 8, 3: 16}  # bits of a Bit, Nib, Byte, Word
 _HIGH_PART = 0x80  # HIGHBIT/HIGHNIB/HIGHBYTE: the last part, whatever the variable's size
 # Variable items: 0x30 | indexed 0x04 | write 0x08 | size; the register number that follows
@@ -135,10 +138,10 @@ class Compiler:
                 el = Element(kind, value, el.start, el.length, el.name)
             self.err = (el.start, el.length)
             return el
+        # Past the last element Parallax's reader returns an end but leaves the caller's
+        # element as it was (its start stays the error position): the element read last.
         self.idx = idx
-        end = elements[-1].start + elements[-1].length if elements else 0
-        self.err = (end, 0)
-        return Element(K.END, 0, end, 0)
+        return Element(K.END, 0, *self.err)
 
     def peek(self) -> Element:
         here, err = self.idx, self.err
@@ -187,8 +190,17 @@ class Compiler:
         """Write a compiled expression, after a 1 bit ("an argument follows") if asked."""
         if one_before:
             self.emit(1, 1)
-        if bits.length:
-            self.emit(bits.length, bits.value)
+        # Parallax writes an expression one 16-bit word of its buffer at a time, and checks
+        # each write on its own: "EEPROM full" (127) only when that word would run past the
+        # end, so a word that reaches DATA is "Data occupies same location" (124) first.
+        # (When it all fits, one write finds the same DATA byte first.)
+        length, value = bits.length, bits.value
+        if self.image.pos + length > TOTAL_BITS:
+            while length > _EMIT_WORD:
+                length -= _EMIT_WORD
+                self.emit(_EMIT_WORD, value >> length)
+        if length:
+            self.emit(length, value)
 
     def emit_expr(self, one_before: bool) -> None:
         self.emit_bits(self.expr, one_before)
@@ -485,6 +497,25 @@ class Compiler:
             if self.ops_len != self.ops_floor:
                 raise self.fail(142)
             return el, True, split
+
+    def append_expression(self, left: Bits, right: Bits, op: int) -> Bits:
+        """The condition ``left op right`` from two compiled conditions (CASE lists).
+
+        Parallax's tokenizer appends ``right`` (after a 1 bit) to ``left`` 16 bits at a time,
+        counting the bits copied in a byte. For ``right`` of 255 bits or more that count
+        wraps around before it reaches the length, so the copying starts over and goes on
+        until the 496-bit buffer is full: error 144, whatever the lengths. Below that, the
+        usual limit applies to the joined expression. The error is reported where the cursor
+        is, just past the CASE item that was appended.
+        """
+        if right.length >= APPEND_COUNT_LIMIT:
+            raise self.fail(144)
+        try:
+            self.expr = left.add(1, 1).join(right)
+        except Failure:
+            raise self.fail(144) from None
+        self.item(op)
+        return self.expr
 
     # ---- arguments of instructions ------------------------------------------------------
     # Each argument is compiled at the run-time stack depth it will find (``depth``: how many

@@ -349,30 +349,39 @@ class Lexer:
     def _number_list(self, pos: int) -> int:
         """Bulk path for ", n, $n, n" (DATA tables): the same elements, built in one go.
 
-        Returns the position after the last number, or ``pos`` when the text there is not such
-        a list (or would overflow the element list: the general path reports that).
+        Returns the position after the last number taken, or ``pos`` when the text there is
+        not such a list. A number over 16 bits ends the run before its comma (the general path
+        then reports it); a run that would overflow the element list fails at the first
+        element that does not fit, as the general path would. Either way the text of the run
+        is looked at once, so a long table costs time in proportion to its length.
         """
         m = _NUMBER_LIST[self.lang25].match(self.src, pos)
         if m is None:
             return pos
         comma, const = K.COMMA, K.CONST
+        elements = self.elements
+        room = MAX_ELEMENTS - len(elements)
         built: list[Element] = []
         add = built.append
+        end = m.end()
         for item in _LIST_ITEM.finditer(m.group()):
             number = item.group(1)
             value = int(number[1:], 16) if number[0] == 36 else int(number)
             if value > 0xFFFF:
-                return pos
-            at = pos + item.start(1)
+                end = pos + item.start()  # the general path reads from this comma on
+                break
+            if len(built) + 2 > room:
+                elements += built
+                at = pos + item.start()
+                raise Failure(107, at if len(built) == room else pos + item.start(1))
             add(Element(comma, 0, pos + item.start(), 1))
-            add(Element(const, value, at, len(number)))
-        elements = self.elements
-        if len(elements) + len(built) > MAX_ELEMENTS:
+            add(Element(const, value, pos + item.start(1), len(number)))
+        if not built:
             return pos
         self.number_lists[len(elements)] = len(elements) + len(built)
         elements += built
         self._end_is_redundant = False
-        return m.end()
+        return end
 
     def run(self) -> list[Element]:
         """Scan the whole source; return the elements."""

@@ -16,8 +16,10 @@ from bstool.tokenizer.diagnostics import HINTS, Failure
 from bstool.tokenizer.image import DEFINED_DATA, PROGRAM, UNDEFINED_DATA
 from bstool.tokenizer.lexer import BS2P_ONLY, Directives, K, Lexer, prepare, read_directives
 from bstool.tokenizer.serial import Serial
+from bstool.tokenizer.sourcefile import read_source
 
 TARGET = "BS2SX"
+_PROJECT_FILES_HINT = "project files are resolved relative to the main file's folder"
 
 
 @dataclass
@@ -215,19 +217,19 @@ def tokenize_source(
         try:
             if files is not None:
                 if name not in files:
-                    raise FileNotFoundError(2, "not among the sources given")
+                    raise InputError(f"{name}: not among the sources given")
                 other = files[name]
             else:
-                other = path.read_bytes().decode("utf-8", errors="replace")
-        except OSError as exc:
+                other = read_source(path)
+        except InputError as exc:
             line, column = _position(text, offset)
             raise SourceError(
-                f"cannot read project file {name!r} (slot {number}): {exc.strerror or exc}",
+                f"cannot read project file {name!r} (slot {number}): {exc.message}",
                 file=filename,
                 line=line,
                 column=column,
                 code=153,
-                hint="project files are resolved relative to the main file's folder",
+                hint="; ".join(filter(None, [exc.hint, _PROJECT_FILES_HINT])),
             ) from None
         slots[number], _ = tokenize_slot(other, os.fspath(path), number, allow_stamp=False)
     return Project(main=filename, target="BS2sx", slots=slots)
@@ -235,13 +237,4 @@ def tokenize_source(
 
 def tokenize_file(path: str | os.PathLike[str]) -> Project:
     """Tokenize a .bsx file and every project file its $STAMP directive names."""
-    p = Path(path)
-    try:
-        text = p.read_bytes().decode("utf-8", errors="replace")
-    except FileNotFoundError:
-        raise InputError(f"source not found: {p}", hint="check the path") from None
-    except IsADirectoryError:
-        raise InputError(f"source is a directory, expected a .bsx file: {p}") from None
-    except OSError as exc:
-        raise InputError(f"cannot read {p}: {exc}") from None
-    return tokenize_source(text, os.fspath(p))
+    return tokenize_source(read_source(path), os.fspath(path))

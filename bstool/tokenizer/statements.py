@@ -58,6 +58,8 @@ class Statements(Declarations):
         self.patches: list[tuple[int, int]] = []  # (element index, address field)
         self.image.pos = (gosubs + 1) * ADDR
         self.statement_starts: list[tuple[int, int]] = []  # (source offset, bit address)
+        # the element the statement loop read last (where a failing final END is reported)
+        self.loop_element = Element(K.END, 0, 0, 0)
 
     # ---- helpers ------------------------------------------------------------------------
     @property
@@ -142,15 +144,16 @@ class Statements(Declarations):
     def compile_program(self) -> None:
         started = False
         while self.more():
-            el = self.get()
+            el = self.loop_element = self.get()
             if el.kind is K.LABEL:
                 raise self.fail(117)
             if el.kind is K.UNDEF:
                 self.new_symbol_room()
                 self.symbols[el.name] = (K.LABEL, self.image.pos)
-                nxt = self.peek()
-                if self.lang25 and (nxt.kind is not K.END or not nxt.soft):
-                    raise self.fail(174)
+                if self.lang25:
+                    nxt = self.loop_element = self.peek()
+                    if nxt.kind is not K.END or not nxt.soft:
+                        raise self.fail(174)
             else:
                 if not started:
                     self.patch(0, self.image.pos)
@@ -165,6 +168,11 @@ class Statements(Declarations):
                     self.dispatch(str(el.value), el)
             self.end_of_statement()
         if started:
+            # The END after the last statement: Parallax reports a failure here (127, the
+            # slot is full) at the element its statement loop read last, the first word of
+            # the last statement (or what it looked at after a label or inside a one-line IF).
+            el = self.loop_element
+            self.err = (el.start, el.length)
             self.emit_code(Instruction.END)
         if self.lang25 and self.depth > 0:
             block = self.top
@@ -183,7 +191,7 @@ class Statements(Declarations):
         if block.awaiting:  # the statement after THEN/ELSE follows on the same line
             block.awaiting = False
             return
-        nxt = self.peek()
+        nxt = self.loop_element = self.peek()
         at_else = nxt.kind is K.INSTRUCTION and nxt.value in ("ELSE", "ELSEIF")
         if (block.in_else or not at_else) and not self.expect_end():
             if block.exits[0] > 0:
@@ -556,10 +564,11 @@ class Statements(Declarations):
         The word's item is the last 10 bits: a 6-bit item code and the word's number. Its
         high byte is byte number 2 * word + 1 with the item's size changed to Byte; an index
         counted in words is doubled (``var(i)`` -> ``var.HIGHBYTE(i * 2)``). What comes
-        before the item (index items, and the 1 that announces the item) is kept.
+        before the item (index items, and the 1 that announces the item) is kept, as Parallax's
+        tokenizer keeps it: see _drop_word_item for the bits it changes on the way.
         """
         code, word = word_write.value >> 4 & 0x3F, word_write.value & 0xF
-        self.expr = Bits(word_write.value >> 10, word_write.length - 10)
+        self.expr = _drop_word_item(word_write)
         if self.expr.length:
             # the constant 2 (item $21, flag 0: exactly 2^1) takes the announced place
             self._bits(6, tokens.CONSTANT_ITEM | 1)
@@ -665,3 +674,36 @@ class Statements(Declarations):
             offset += 1
             if self._list_end():
                 return
+
+
+_WORD_BITS = 16  # Parallax's expression buffer is an array of 16-bit words
+_WORD_ITEM_BITS = 10  # a Word variable's item: 6-bit code + 4-bit register number
+
+
+def _drop_word_item(expr: Bits) -> Bits:
+    """``expr`` without its last item (a Word variable's 10 bits), as Parallax rebuilds it.
+
+    Parallax's tokenizer keeps an expression in 16-bit words filled from the most significant
+    bit; the last word holds its ``n = length % 16`` bits right-aligned (a full word when
+    ``n`` is 0). To cut off the item it takes the word that holds the item's first bit as if
+    that word were full: it keeps that word's bits above the item by shifting the word right
+    by ``16 - s`` (``s`` = the item's first bit's place in the word). That is right when the
+    word is full or the item runs on into the next word. When the item lies wholly inside the
+    last, partly filled word (``m`` = 10..15 bits in it), the shift is ``16 - m`` too far: the
+    ``m - 10`` bits before the item in that word come out shifted right by ``16 - m`` with
+    zeros above them. The length is then simply reduced by 10.
+
+    This is what the vectors ``fuzz_word_read_const_index`` (``wa(1000)``: the 1 announcing
+    the item becomes 0) and ``fuzz_word_get_nested_index`` (``v3(v5(1))``: 4 bits ``0101``
+    become ``0001``) show; it happens for a constant index of 10-14 significant bits that is
+    not a power of two, and for other index expressions whose length puts the item there.
+    """
+    length = expr.length - _WORD_ITEM_BITS
+    prefix = expr.value >> _WORD_ITEM_BITS
+    word = length // _WORD_BITS
+    in_last = expr.length - word * _WORD_BITS  # bits of the buffer in the item's word
+    before = in_last - _WORD_ITEM_BITS  # bits before the item in that word
+    if in_last < _WORD_BITS and before > 0:
+        kept = prefix & ((1 << before) - 1)
+        prefix = (prefix >> before << before) | (kept >> (_WORD_BITS - in_last))
+    return Bits(prefix, length)
