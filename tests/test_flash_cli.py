@@ -363,3 +363,18 @@ def test_port_failure_mid_upload_is_a_message(
     assert main(["flash", "-p", "bstwin://gone", str(build)]) == 4
     err = capsys.readouterr().err
     assert "the port bstwin://gone failed while flashing L0.M0 slot 0" in err and "Hint:" in err
+
+
+def test_a_controller_without_module_is_refused_before_compiling(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import bstool.compile
+
+    def boom(*_a: object, **_k: object) -> None:
+        raise AssertionError("compiled before saying what is missing")
+
+    monkeypatch.setattr(bstool.compile, "compile_controller", boom)
+    from bstool.builtin import builtin_controller
+
+    code = main(["flash", "--port", "bstwin://nobody", str(builtin_controller("ca1d"))])
+    assert code == 2

@@ -169,6 +169,13 @@ def _from_controller(path: Path, module: str | None, every_module: bool) -> Targ
             f"{path}: not a build directory, a .bsx file or a controller file",
             hint="flash the output of bstool compile, a .bsx program or a best.json",
         )
+    size = (obj.get("legs"), obj.get("modules"))
+    if module is None and not every_module and size != (1, 1):  # said before compiling
+        raise InputError(
+            f"the controller {path} compiles to one program per module: choose one",
+            hint="add --module L.M (e.g. --module 0.0), or compile it and flash the build "
+            "with --all",
+        )
     from bstool.compile import compile_controller  # jinja and the templates: only when needed
 
     tmp = tempfile.TemporaryDirectory(prefix="bstool-flash-")
