@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 from bstool.compile import link
 from bstool.compile.timing import PAD_PIN
 from bstool.compile.topology import PORT_TEXT, PORTS, SERVO_PIN, links, pin_role
-from bstool.controllers import Controller
+from bstool.controllers import NN_MODELS, Controller
 from bstool.moduleid import ModuleId
 
 if TYPE_CHECKING:
@@ -84,6 +84,7 @@ def manifest(
                     "ok_iteration_ms": ll.ok_ms,
                     **({} if ll.master else {"recover_ms": ll.recover_ms}),
                     **({"bypass": True} if ll.link.bypass else {}),
+                    **({"near_deadline_ms": ll.near_deadline} if ll.near_deadline else {}),
                     "send_states": len(ll.send),
                     "receive_states": len(ll.store),
                     "wait_base_units": ll.wait_units,
@@ -127,6 +128,7 @@ def manifest(
         {"module": str(res.plan.mid), "slots": _flash_slots(res)}
         for res in sorted(results, key=lambda r: r.plan.mid)
     ]
+    nn = ctrl.model in NN_MODELS
     return {
         "format": FORMAT,
         "controller": {
@@ -145,6 +147,7 @@ def manifest(
             "baudmode": link.BAUDMODE,
             "request_base": link.REQUEST_BASE,
             "reply_base": link.REPLY_BASE,
+            **({"reply_next_dead_base": link.REPLY_NEXT_DEAD_BASE} if nn else {}),
             "reply_base_units": link.REPLY_BASE_UNITS,
             "recover_units": link.RECOVER_UNITS,
             "linger_units": link.LINGER_UNITS,
