@@ -145,8 +145,9 @@ def _near(plan: ModulePlan, ll: LocalLink) -> LocalLink:
 
     The bypass is then this module's only wire downstream; if its peer falls silent too (two
     dead neighbours in a row) this module must still be back, in the next transition, before
-    its upstream neighbour gives up on it — however early that neighbour is within the exchange
-    allowance ExchMs. The full bypass deadline (an extra window for the meeting in the transition
+    its upstream neighbour gives up on it — however early that neighbour is (by up to the
+    exchange allowance ExchMs, or by the lateness a single death downstream once left this module
+    with). The full bypass deadline (an extra window for the meeting in the transition
     a module first goes silent) would make it too late: its upstream gave up, the two fell a
     transition apart and marked each other dead (issue 16). The lead has no upstream."""
     if not (ll.master and ll.link.bypass):
