@@ -73,6 +73,7 @@ class LinkSettings:
     linger_units: int
     linger_listens: int
     silent_transitions: int
+    reply_next_dead_base: int | None = None  # NN: a reply saying "my next module is dead"
 
 
 @dataclass(frozen=True)
@@ -110,6 +111,7 @@ class Pin:
     ok_iteration_ms: int | None = None
     recover_ms: int | None = None  # slaves only
     bypass: bool = False
+    near_deadline_ms: int | None = None  # NN bypass: give-up while the chain wire is dead
     send_states: int | None = None
     receive_states: int | None = None
     wait_base_units: int | None = None
@@ -238,6 +240,8 @@ def _pin_json(p: Pin) -> dict[str, Any]:
         out["recover_ms"] = p.recover_ms
     if p.bypass:
         out["bypass"] = True
+    if p.near_deadline_ms is not None:
+        out["near_deadline_ms"] = p.near_deadline_ms
     out.update(
         send_states=p.send_states,
         receive_states=p.receive_states,
@@ -272,6 +276,17 @@ def _module_json(m: Module) -> dict[str, Any]:
     return out
 
 
+def _link_json(link: LinkSettings) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in link.__dict__.items():
+        if key == "reply_next_dead_base":
+            continue
+        out[key] = value
+        if key == "reply_base" and link.reply_next_dead_base is not None:
+            out["reply_next_dead_base"] = link.reply_next_dead_base
+    return out
+
+
 def to_json(man: Manifest) -> dict[str, Any]:
     """The manifest as the JSON object on disk (field order as written)."""
     return {
@@ -280,7 +295,7 @@ def to_json(man: Manifest) -> dict[str, Any]:
         "robot": dict(man.robot.__dict__),
         "period_s": man.period_s,
         "tokenized": man.tokenized,
-        "link": dict(man.link.__dict__),
+        "link": _link_json(man.link),
         "announcement": man.announcement,
         "modules": [_module_json(m) for m in man.modules],
         "links": [
@@ -421,6 +436,7 @@ def _read_pin(f: _Fields, robot: RobotSize) -> Pin:
         ok_iteration_ms=f.integer("ok_iteration_ms"),
         recover_ms=f.integer("recover_ms", optional=True),
         bypass=f.boolean("bypass", default=False),
+        near_deadline_ms=f.integer("near_deadline_ms", optional=True),
         send_states=f.integer("send_states"),
         receive_states=f.integer("receive_states"),
         wait_base_units=f.integer("wait_base_units"),
@@ -501,7 +517,12 @@ def from_json(obj: Any, file: str | os.PathLike[str] = MANIFEST_FILE) -> Manifes
     link = top.sub("link")
     link_settings = LinkSettings(
         protocol=link.string("protocol"),
-        **{k: link.integer(k) for k in LinkSettings.__dataclass_fields__ if k != "protocol"},
+        **{
+            k: link.integer(k)
+            for k in LinkSettings.__dataclass_fields__
+            if k not in ("protocol", "reply_next_dead_base")
+        },
+        reply_next_dead_base=link.integer("reply_next_dead_base", optional=True),
     )
     wires = [
         Wire(

@@ -10,8 +10,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from bstool.builtin import builtin_controller
+from bstool.compile import timing
+from bstool.compile.calibration import DEFAULT
+from bstool.compile.plan import build_plans
 from bstool.compile.topology import links, module_links, reads
-from bstool.controllers import CA_MODELS, MODELS, NN_MODELS
+from bstool.controllers import CA_MODELS, MODELS, NN_MODELS, load_controller
 from bstool.moduleid import ModuleId, all_modules
 from bstool.wire import link
 
@@ -112,3 +116,38 @@ def test_link_vector_files_are_up_to_date() -> None:
     spec.loader.exec_module(module)
     for name, text in module.render().items():
         assert text == (VECTORS / name).read_text(), "run protocol/vectors/make_link_vectors.py"
+
+
+def test_next_dead_header_is_two_bits_from_the_others() -> None:
+    """The NN reply `$F8 + t` (protocol/link.md §3): one flipped bit never makes or hides it,
+    and like every header it fails the payload check."""
+    for t in range(link.TRANSITION_MOD):
+        flagged = link.REPLY_NEXT_DEAD_BASE + t
+        for other in (link.REPLY_BASE + t, link.REQUEST_BASE + t):
+            assert bin(flagged ^ other).count("1") == 2
+        assert link.decode_state(flagged) is None
+
+
+def test_nn_pair_guards() -> None:
+    """Two NN neighbours dying (protocol/link.md §5): a chain master learns from its slave's
+    reply that the module after it is dead (its bypass to that module), and a bypass master with
+    an upstream neighbour gives up early while its chain wire is dead, so that it is back before
+    that neighbour's deadline however early the neighbour is."""
+    ctrl = load_controller(builtin_controller("nnsin"))
+    for plan in build_plans(ctrl, DEFAULT, 0.475, "0" * 8):
+        j = plan.mid.module
+        for ll in plan.links:
+            if ll.master and not ll.link.bypass and j + 2 < ctrl.modules:
+                assert plan.links[ll.next_dead].peer == ModuleId(plan.mid.leg, j + 2)
+            if not ll.master and not ll.link.bypass and j + 1 < ctrl.modules:
+                assert plan.links[ll.reports_dead].peer == ModuleId(plan.mid.leg, j + 1)
+            if ll.master and ll.link.bypass:
+                if j == 0:
+                    assert ll.near_deadline == 0  # the lead: nobody upstream to be back for
+                    continue
+                up = next(u.deadline for u in plan.links if not u.master and not u.link.bypass)
+                late = max(d.deadline for d in plan.links if d.master) + plan.hold_step
+                early = max(plan.exch_ms, late - plan.hold_ms)
+                back = ll.near_deadline + plan.hold_step - plan.hold_ms + early
+                assert back + timing.NEAR_SAFETY_MS <= up
+                assert timing.LATE_MS <= ll.near_deadline < ll.deadline

@@ -16,6 +16,9 @@ import pytest
 from conftest import BuiltinBuild
 
 from bstool.cli import main
+from bstool.compile import emulate
+from bstool.compile.calibration import DEFAULT
+from bstool.compile.plan import build_plans
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
 from bstool.robot import state_to_angle
@@ -67,6 +70,35 @@ def test_dying_at_0_and_limp(build: Path) -> None:
         result.state_array(b.legs, b.modules, 6), ctrl.states(6, failed=[dying])
     )
     assert twin.servos[dying].limp and list(twin.died) == [dying]
+
+
+@pytest.fixture(scope="module")
+def nnsin_build(builtin_build: BuiltinBuild) -> Path:
+    return builtin_build("nnsin")
+
+
+@pytest.mark.parametrize(
+    "die", [{ModuleId(4, 2): 4, ModuleId(4, 3): 10}, {ModuleId(4, 3): 4, ModuleId(4, 2): 10}]
+)
+def test_two_neighbours_dying_leave_the_module_before_them_alone(
+    nnsin_build: Path, die: dict[ModuleId, int]
+) -> None:
+    """Issue 16: with 4.2 and 4.3 dying one after the other (either order), 4.1 froze from
+    transition 12: it waited on its bypass to the second one until the bypass deadline, came
+    back too late for the lead, and the two marked each other dead. Everything before and at the
+    pair must equal the reference; the modules after it are the documented limit (they keep the
+    last upstream states they heard), i.e. the compiled tables run by ``emulate.run``."""
+    b = load_build(nnsin_build)
+    ctrl = load_controller(nnsin_build / "controller.json")
+    T = 14
+    result = RobotTwin(b, die=die, physics=False).run(T)
+    assert result.stalled == []
+    got = result.state_array(b.legs, b.modules, T)
+    want = ctrl.states(T, failed_at=die)
+    np.testing.assert_array_equal(got[:, :, :4], want[:, :, :4])  # 4.1 is before the pair
+    np.testing.assert_array_equal(got[:, :4], want[:, :4])  # the other legs
+    limit = emulate.run(build_plans(ctrl, DEFAULT, b.period, "0" * 8), T, die=die)
+    np.testing.assert_array_equal(got, limit)
 
 
 def test_twin_cli_die(build: Path, capsys: pytest.CaptureFixture[str]) -> None:

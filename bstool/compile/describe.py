@@ -8,7 +8,7 @@ from bstool import buildfile as bf
 from bstool.compile.results import ModuleResult, SlotResult
 from bstool.compile.timing import PAD_PIN
 from bstool.compile.topology import SERVO_PIN, links, pin_role
-from bstool.controllers import Controller
+from bstool.controllers import NN_MODELS, Controller
 from bstool.wire import announce, link
 
 RAM_BYTES = 26
@@ -54,6 +54,7 @@ def _module(ctrl: Controller, res: ModuleResult) -> bf.Module:
                 ok_iteration_ms=ll.ok_ms,
                 recover_ms=None if ll.master else ll.recover_ms,
                 bypass=ll.link.bypass,
+                near_deadline_ms=ll.near_deadline or None,
                 send_states=len(ll.send),
                 receive_states=len(ll.store),
                 wait_base_units=ll.wait_units,
@@ -121,6 +122,7 @@ def manifest(
             linger_units=link.LINGER_UNITS,
             linger_listens=link.LINGER_LISTENS,
             silent_transitions=link.SILENT_TRANSITIONS,
+            reply_next_dead_base=link.REPLY_NEXT_DEAD_BASE if ctrl.model in NN_MODELS else None,
         ),
         announcement=announce.DESCRIPTION,
         modules=[_module(ctrl, res) for res in results],

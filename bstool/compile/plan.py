@@ -7,7 +7,7 @@ compare the compiled tables with the reference without a BS2sx.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from bstool.compile import tables, timing
 from bstool.compile.calibration import Calibration
@@ -46,6 +46,9 @@ class LocalLink:
     store: tuple[str, ...]  # variables that receive the decoded states ("" = check only)
     wait_units: int  # pulse + SERIN timeout (0.4 ms units): ReplyBase or SlaveBase
     only_if_dead: int = -1  # NN bypass: run only while the link with this number is dead
+    near_deadline: int = 0  # NN bypass master: the deadline while its chain wire is dead (0: none)
+    reports_dead: int = -1  # NN chain slave: its reply says whether this link's peer is dead
+    next_dead: int = -1  # NN chain master: the bypass link a reply of $F8 + t marks dead
     ok_ms: int = 0  # what a successful try adds (the whole try, as it ends the exchange)
     recover_ms: int = 0  # slave: what catching only the tail of a request adds
 
@@ -138,7 +141,34 @@ def build_plans(
         plan.exch_ms = timing.allowance_ms(exchange, plan.hold_ms, plan.hold_step)
         plan.free_ms = min(plan.exch_ms, round(_own_exchange_ms(plan, every)))
         plan.roll_ms = roll
+        if plan.family == "nn":
+            plan.links = [_near(plan, ll) for ll in plan.links]
     return [p for p in every if wanted is None or p.mid in wanted]
+
+
+def _near(plan: ModulePlan, ll: LocalLink) -> LocalLink:
+    """The deadline of an NN bypass master while the chain wire it replaces is dead.
+
+    The bypass is then this module's only wire downstream; if its peer falls silent too (two
+    dead neighbours in a row) this module must still be back, in the next transition, before
+    its upstream neighbour gives up on it — however early that neighbour is (by up to the
+    exchange allowance ExchMs, or by the lateness a single death downstream once left this module
+    with). The full bypass deadline (an extra window for the meeting in the transition
+    a module first goes silent) would make it too late: its upstream gave up, the two fell a
+    transition apart and marked each other dead (issue 16). The lead has no upstream."""
+    if not (ll.master and ll.link.bypass):
+        return ll
+    ups = [u.deadline for u in plan.links if not u.master and not u.link.bypass]
+    if not ups:
+        return ll
+    # how early the upstream neighbour may be: within the allowance, or as late as this module
+    # once was after a single death downstream (waiting until its longest deadline; the
+    # upstream then met it past LateMs and kept one holding frame, so it keeps that lead)
+    late = max(d.deadline for d in plan.links if d.master) + plan.hold_step - plan.hold_ms
+    early = max(plan.exch_ms, late)
+    back_by = ups[0] + plan.hold_ms - plan.hold_step - early - timing.NEAR_SAFETY_MS
+    near = min(ll.deadline, back_by)
+    return replace(ll, near_deadline=near) if near < ll.deadline else ll
 
 
 def _gap_ms(plan: ModulePlan, ll: LocalLink) -> float:
@@ -275,10 +305,17 @@ def _plan(
         else:  # the t+1 states of modules 0..peer (a bypass leaves the dead j-1 at R^0)
             send = ()
             store = tuple(f"up({a})" for a in range(peer.module + 1))
-        guard = -1
+        guard = reports = flags = -1
         if lk.bypass:  # the chain wire to the module this one bypasses
             between = ModuleId(mid.leg, (lk.master.module + lk.slave.module) // 2)
             guard = next(i for i, other in enumerate(mine) if other.peer(mid) == between)
+        elif family == "nn":  # chain wire: the next module's dead mark travels upstream
+            beyond = ModuleId(mid.leg, peer.module + 1 if master else mid.module + 1)
+            for i, other in enumerate(mine):
+                if master and other.bypass and other.peer(mid) == beyond:
+                    flags = i  # the bypass to the module after the peer
+                if not master and not other.bypass and other.peer(mid) == beyond:
+                    reports = i  # this module's own chain wire to its next module
         rx_size = max(rx_size, len(store))
         pulse_mid_ms = pulses[ctrl.k // 2] * timing.PULSOUT_UNIT_MS
         if master:
@@ -307,6 +344,8 @@ def _plan(
                 store=store,
                 wait_units=units,
                 only_if_dead=guard,
+                reports_dead=reports,
+                next_dead=flags,
             )
         )
     if rx_size > MAX_PAYLOAD:

@@ -80,6 +80,10 @@ BYPASS_EXTRA_WINDOWS = 1
 which module j first goes silent, j+1 reaches the bypass only at its chain wire's deadline
 (one window after j-1 did), and the two must still meet there with the slave's clock running
 a few % slow (one window left them about 30 ms)."""
+NEAR_SAFETY_MS = 50
+"""An NN bypass that replaces a dead chain wire gives up this much before its module would be
+too late for its upstream neighbour's deadline in the next transition (plan._near): room for the
+clock estimate and a retry or two."""
 FIRST_BASE_MS = 1000
 """Deadline base of the roll call (first exchange after power-up): modules switched on within
 about a second of each other still find each other."""

@@ -18,6 +18,11 @@ REQUEST_BASE = 0xA8
 """Header of a master's frame: $A8 + (t mod 8)."""
 REPLY_BASE = 0xC8
 """Header of a slave's reply: $C8 + (t mod 8)."""
+REPLY_NEXT_DEAD_BASE = 0xF8
+"""NN: header of the reply of module j on the chain wire from j-1 when j has marked its own next
+module j+1 dead: $F8 + (t mod 8). Module j-1 then marks its bypass to j+1 dead too, so that if j
+dies later it does not wait on a bypass nobody answers (protocol/link.md §5). Two bits away from
+$C8 (and from $A8), so no single flipped bit makes or hides it."""
 TRANSITION_MOD = 8
 
 REPLY_BASE_UNITS = 19
