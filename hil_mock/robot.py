@@ -26,6 +26,7 @@ import numpy as np
 
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
+from hil_mock.perturb import Perturbation, PerturbRun  # issue 12 §1
 from hil_mock.stamp import NEVER, Stamp, StampIO, Status
 
 LIMP_AFTER_S = 0.06
@@ -253,6 +254,7 @@ class RobotTwin:
         noise: float = 0.0,
         seed: int = 0,
         physics: bool = True,
+        perturb: Perturbation | None = None,  # issue 12 §1
     ) -> None:
         self.build = build
         if not 0.0 <= noise <= 1.0:
@@ -306,6 +308,7 @@ class RobotTwin:
         self.reference = live[0] if live else next(iter(self.stamps), None)
         self.t_ns = 0
         self.path: list[tuple[float, float]] = []
+        self.perturb = PerturbRun.install(self, perturb)  # issue 12 §1: clocks, starts, resets
 
     # ---- physics --------------------------------------------------------------------------
     def _init_physics(self, physics: bool) -> None:
@@ -366,10 +369,11 @@ class RobotTwin:
                 return
             value ^= 1 << int(self.rng.integers(8))  # one bit flipped on the wire
             self.noise_events["flipped"] += 1
+        tx_bit_ns = self.ran[mid].clock.bit_ns(mode)  # issue 12 §1: the sender's bit time
         for peer, peer_pin in self.wires.get((mid, pin), ()):
             stamp = self.stamps.get(peer)
             if stamp is not None:
-                stamp.deliver_byte(peer_pin, value, start_ns, mode)
+                stamp.deliver_byte(peer_pin, value, start_ns, mode, tx_bit_ns)
 
     def _dies_at_pulse(self, mid: ModuleId, stamp: Stamp, after: bool) -> bool:
         """Whether a dying module stops at this servo pulse (``after``: once it went out).
@@ -480,7 +484,7 @@ class RobotTwin:
         ref = self.records[self.reference]
         done_before = 0
         while self.t_ns < limit_ns:
-            self._advance_stamps(self.t_ns + chunk_ns)
+            self.perturb.advance(self, self.t_ns + chunk_ns)  # issue 12 §1 (was _advance_stamps)
             self._apply_servos()
             if self.sim is not None:
                 import mujoco

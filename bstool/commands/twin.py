@@ -10,6 +10,7 @@ import click
 
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_failure_time, parse_module
+from hil_mock.perturb import Perturbation, perturb_options  # issue 12 §1
 
 
 @click.command("twin")
@@ -46,7 +47,7 @@ from bstool.moduleid import ModuleId, parse_failure_time, parse_module
     show_default=True,
     help="Chance that a byte on a link is dropped or has a bit flipped.",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the link noise.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random draw.")
 @click.option(
     "--controller",
     type=click.Path(dir_okay=False),
@@ -74,6 +75,7 @@ from bstool.moduleid import ModuleId, parse_failure_time, parse_module
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@perturb_options()  # issue 12 §1: --timing-scale --timing-spread --clock-spread ... (one arg)
 def command(
     build: str,
     transitions: int,
@@ -90,6 +92,7 @@ def command(
     timeout_s: float | None,
     as_json: bool,
     quiet: bool,
+    perturb: Perturbation,  # issue 12 §1
 ) -> None:
     """Run BUILD (a `bstool compile` output) on the twin: every module's program on its own
     virtual BS2sx, the modules wired as WIRING.md says, each servo driving the simulated robot.
@@ -121,7 +124,8 @@ def command(
         eeproms = dict(fleet.eeproms)
     try:
         twin = RobotTwin(b, eeproms=eeproms, failed=fail_ids, die=die_at, limp_failed=limp_failed,
-                         cut=cuts, noise=link_noise, seed=seed, physics=not no_physics)  # fmt: skip
+                         cut=cuts, noise=link_noise, seed=seed, physics=not no_physics,
+                         perturb=perturb)  # fmt: skip
         result = _run(twin, transitions, quiet or as_json, video, timeout_s)
     finally:
         if fleet is not None:
@@ -144,6 +148,7 @@ def command(
         out["path"] = result.path.tolist()
         out["virtual_seconds"] = result.virtual_seconds
         out["instructions"] = result.instructions
+        out["perturbations"] = twin.perturb.report(twin)  # issue 12 §1
         click.echo(json.dumps(out))
     else:
         _print(report, result)
