@@ -97,10 +97,16 @@ class StampClock:
         nominal = timing.byte_ns(mode)
         return nominal if self.resonator == 1.0 else round(nominal * self.resonator)
 
-    def rx_done_ns(self, mode: int) -> int:
-        """From a received frame's start edge until the stamp listens again (or goes on)."""
+    def rx_done_ns(self, mode: int, tx_bit_ns: float | None = None) -> int:
+        """From a received frame's start edge (sent at ``tx_bit_ns``, default this stamp's own
+        bit time) until the stamp listens again or goes on. Ideal serial timing (no item
+        time): at the end of the frame as sent. Stamp serial timing: the item time after the
+        stop bit's mid-bit sample on the receiver's own clock."""
         if self.item_ns is None:
-            return self.byte_ns(mode)
+            own = self.byte_ns(mode)
+            if tx_bit_ns is None or tx_bit_ns == self.bit_ns(mode):
+                return own
+            return round(timing.BITS_PER_BYTE * tx_bit_ns)
         return round(STOP_SAMPLE_BITS * self.bit_ns(mode)) + self.item_gap_ns
 
     @property

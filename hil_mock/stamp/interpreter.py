@@ -219,7 +219,7 @@ class Stamp:
         if tx_bit_ns is not None and not frame_received(tx_bit_ns, clock.bit_ns(w.mode)):
             self.rx_mismatched += 1
             return False  # garbage: counted as lost
-        self.t = start_ns + clock.rx_done_ns(w.mode)
+        self.t = start_ns + clock.rx_done_ns(w.mode, tx_bit_ns)
         self.instructions += 1
         item = self._rx_item
         assert item is not None
