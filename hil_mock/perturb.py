@@ -187,7 +187,10 @@ class PerturbRun:
             stamp.t = round(d.start_s * NS)  # nothing runs before power-up; lines released
         spans: dict[ModuleId, list[tuple[float, float]]] = {}
         for r in p.resets:
-            mid = parse_module(r.module, legs, modules)
+            try:
+                mid = parse_module(r.module, legs, modules)
+            except InputError as exc:
+                raise InputError(f"--reset {r}: {exc}", hint=exc.hint) from None
             if mid not in twin.stamps:
                 raise InputError(f"--reset {r}: module {mid} is failed (--fail): it never runs")
             if mid in twin.die:
