@@ -149,7 +149,9 @@ def test_neutral_values_leave_the_twin_bit_identical(build: Path) -> None:
     ],
     ids=["scale0.5", "scale2", "spread20", "clock2"],
 )
-def test_ca1d_stays_exact_under_timing_and_clock_perturbations(build: Path, p: Perturbation) -> None:
+def test_ca1d_stays_exact_under_timing_and_clock_perturbations(
+    build: Path, p: Perturbation
+) -> None:
     b = load_build(build)
     result = RobotTwin(b, physics=False, perturb=p).run(T)
     assert result.stalled == []
@@ -230,8 +232,8 @@ def test_a_resonator_factor_scales_pause_pulsout_serin_timeout_and_bit_rate() ->
 
 
 def test_a_speed_factor_scales_every_instruction() -> None:
-    n_stamp, n_io = _timed(StampClock())
-    s_stamp, s_io = _timed(StampClock(speed=2.0))
+    _, n_io = _timed(StampClock())
+    _, s_io = _timed(StampClock(speed=2.0))
     assert s_io.pulses[0][1] == 2 * n_io.pulses[0][1]  # the statements before the pulse
     assert s_io.pulses[0][2] == n_io.pulses[0][2]  # the pulse is the resonator's
 
