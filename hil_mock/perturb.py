@@ -293,28 +293,61 @@ class PerturbRun:
         return out
 
 
+# ---- python -m hil_mock serve -----------------------------------------------------------------
+def serve_draws(p: Perturbation, modules: Sequence[ModuleId]) -> dict[ModuleId, ModuleDraw]:
+    """The draws of ``serve``'s modules. Served stamps are reset by their host, one at a time, so
+    a reset at a virtual time of a robot run has no meaning there."""
+    if p.resets:
+        raise click.UsageError("--reset needs a robot run in virtual time: use `bstool twin`")
+    return draw(p, modules)
+
+
+def perturb_runner(runner: object, p: Perturbation, d: ModuleDraw) -> None:
+    """Give a served module's interpreter preview (``InterpreterRunner``) its clock and start."""
+    if hasattr(runner, "clock") and hasattr(runner, "start_s"):
+        runner.clock = stamp_clock(p, d)
+        runner.start_s = d.start_s
+
+
+def draws_json(p: Perturbation, draws: dict[ModuleId, ModuleDraw]) -> dict[str, Any]:
+    """The options and draws (serve prints them on stderr)."""
+    out = p.options()
+    out["modules"] = {
+        str(m): {"timing": d.timing, "resonator": d.resonator,
+                 "speed": d.speed(p.timing_scale), "start_s": d.start_s}
+        for m, d in draws.items()
+    }  # fmt: skip
+    return out
+
+
 # ---- command-line options ---------------------------------------------------------------------
 Decorator = Callable[[Callable[..., Any]], Callable[..., Any]]
 
 
-def perturb_options(*, add_seed: bool = False) -> Decorator:
+def perturb_options(*, add_seed: bool = False, usage_errors: bool = False) -> Decorator:
     """Click options of the perturbations; the command gets them as one ``perturb``
     (:class:`Perturbation`) argument. The seed is the command's own ``--seed`` (``add_seed``:
-    add one)."""
+    add one). ``usage_errors``: bad values as click usage errors (for a click program without
+    bstool's error handler)."""
 
     def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(func)
         def wrapper(*args: Any, **kw: Any) -> Any:
             seed = kw.pop("seed") if add_seed else kw.get("seed", 0)
-            kw["perturb"] = Perturbation(
-                timing_scale=kw.pop("timing_scale"),
-                timing_spread=kw.pop("timing_spread"),
-                clock_spread=kw.pop("clock_spread"),
-                start_spread=kw.pop("start_spread"),
-                resets=tuple(parse_reset(r) for r in kw.pop("resets")),
-                item_time_us=kw.pop("item_time"),
-                seed=int(seed or 0),
-            )
+            try:
+                kw["perturb"] = Perturbation(
+                    timing_scale=kw.pop("timing_scale"),
+                    timing_spread=kw.pop("timing_spread"),
+                    clock_spread=kw.pop("clock_spread"),
+                    start_spread=kw.pop("start_spread"),
+                    resets=tuple(parse_reset(r) for r in kw.pop("resets")),
+                    item_time_us=kw.pop("item_time"),
+                    seed=int(seed or 0),
+                )
+            except InputError as exc:
+                if not usage_errors:
+                    raise
+                raise click.UsageError(f"{exc} ({exc.hint})" if exc.hint else str(exc)) from None
             return func(*args, **kw)
 
         opts = _options()

@@ -261,3 +261,35 @@ def test_stamp_serial_timing_spaces_bytes_and_rearms_after_the_stop_sample() -> 
     assert stamp.deliver_byte(2, 7, start, 240)
     # the stop bit is sampled 9.5 bit times after the start edge; the next item 60 us later
     assert stamp.t == start + round(9.5 * byte / 10) + 60_000
+
+
+# ---- python -m hil_mock serve ----------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--timing-scale", "5"], "--timing-scale must be in 0.5..3"),
+        (["--reset", "0.0@1+1"], "--reset needs a robot run"),
+    ],
+)
+def test_serve_rejects_bad_values_without_a_traceback(args: list[str], message: str) -> None:
+    from click.testing import CliRunner
+
+    from hil_mock.__main__ import main as hil_main
+
+    result = CliRunner().invoke(hil_main, ["serve", "--modules", "1", *args])
+    assert result.exit_code == 2
+    assert message in result.output
+    assert isinstance(result.exception, SystemExit)
+
+
+def test_serve_gives_each_preview_stamp_its_clock_and_start() -> None:
+    from hil_mock.perturb import perturb_runner, serve_draws
+    from hil_mock.runners import InterpreterRunner
+
+    p = Perturbation(timing_scale=2.0, clock_spread=0.01, start_spread=0.3, seed=1)
+    d = serve_draws(p, [ModuleId(0, 0)])[ModuleId(0, 0)]
+    runner = InterpreterRunner()
+    perturb_runner(runner, p, d)
+    assert runner.clock is not None and runner.start_s == d.start_s
+    assert runner.clock.resonator == d.resonator
+    assert runner.clock.speed == pytest.approx(2.0 * d.resonator)
