@@ -27,9 +27,13 @@ from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
 
 if TYPE_CHECKING:
-    from hil_mock.robot import RobotTwin
     from hil_mock.stamp import Stamp
     from hil_mock.stamp.clock import StampClock
+
+RobotTwin = Any
+"""A :class:`hil_mock.robot.RobotTwin` (not imported: it imports this module, and the sibling
+modules of hil_mock stay acyclic). Used: build, order, stamps, die, reference, servos,
+records, _readers, _advance_stamps, _killed."""
 
 NS = 1_000_000_000
 TIMING_SCALE = (0.5, 3.0)
@@ -172,11 +176,13 @@ class PerturbRun:
     boots: dict[ModuleId, list[float]] = field(default_factory=dict)  # virtual s of each boot
     offs: dict[ModuleId, list[float]] = field(default_factory=dict)  # virtual s of each loss
     off_stamps: dict[ModuleId, Stamp] = field(default_factory=dict)  # powered off now
+    stamps: list[Stamp] = field(default_factory=list)  # every stamp of the twin (counters)
 
     @classmethod
     def install(cls, twin: RobotTwin, p: Perturbation | None) -> PerturbRun:
         """Apply ``p`` to ``twin`` (right after its stamps were made)."""
         run = cls(p or Perturbation())
+        run.stamps = list(twin.stamps.values())
         if p is None or p.neutral:
             return run
         legs, modules = twin.build.legs, twin.build.modules
@@ -262,7 +268,7 @@ class PerturbRun:
     def reset_modules(self) -> set[ModuleId]:
         return {m for m, _ in self.resets}
 
-    def report(self, twin: RobotTwin) -> dict[str, Any]:
+    def report(self) -> dict[str, Any]:
         """The options, what was drawn and what happened (the ``perturbations`` of --json)."""
         from hil_mock.stamp.clock import UART_TOLERANCE
 
@@ -287,7 +293,7 @@ class PerturbRun:
             }
             for m, r in self.resets
         ]
-        stamps = list(twin.ran.values())
+        stamps = self.stamps
         out["bytes_missed"] = sum(s.rx_missed for s in stamps)
         out["bytes_mismatched"] = sum(s.rx_mismatched for s in stamps)
         return out

@@ -148,7 +148,7 @@ def command(
         out["path"] = result.path.tolist()
         out["virtual_seconds"] = result.virtual_seconds
         out["instructions"] = result.instructions
-        out["perturbations"] = twin.perturb.report(twin)  # issue 12 §1
+        out["perturbations"] = twin.perturb.report()  # issue 12 §1
         click.echo(json.dumps(out))
     else:
         _print(report, result)
