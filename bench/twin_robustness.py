@@ -1,6 +1,7 @@
 """How today's link protocol fares on a twin as unkind as real stamps (issue 12 §1).
 
-    python bench/twin_robustness.py [--models ca1d nnsin ...] [-T 12] [--seed 1] [--quick]
+    python bench/twin_robustness.py [--models ca1d nnsin ...] [-T 12] [--seed 1] [--seeds N]
+                                    [--quick]
 
 Compiles each shipped controller (bstool/data/controllers/) once into a temporary folder, then
 runs the twin without physics (``RobotTwin(perturb=...)``, i.e. ``bstool twin --no-physics``)
@@ -11,7 +12,9 @@ compared with the healthy reference ``controller.states(T)`` (for resets too: th
 protocol that survives them must give). Prints one markdown table, a cell per model and case:
 ``exact/total`` (modules whose whole sequence equals the reference / modules), the mean
 transition period (s) and the longest servo gap (ms; the reset module's own outage left out),
-``!`` when some module stalled (made fewer than T transitions in the time limit).
+``!`` when some module stalled (made fewer than T transitions in the time limit). With
+``--seeds N`` every case with random draws (spreads, noise) runs seeds seed..seed+N-1: the cell
+sums the exact modules over the runs, averages the periods and takes the longest gap.
 ``--quick`` runs a smoke subset (two models, eight cases, T = 8).
 """
 
@@ -76,7 +79,10 @@ def cases(quick: bool) -> list[tuple[str, Perturbation, float]]:
     return out
 
 
-def run_case(build: Build, want: np.ndarray, T: int, p: Perturbation, noise: float) -> str:
+def run_once(
+    build: Build, want: np.ndarray, T: int, p: Perturbation, noise: float
+) -> tuple[int, float, float, bool]:
+    """(exact modules, mean period s, longest servo gap s, stalled) of one run."""
     twin = RobotTwin(build, noise=noise, seed=p.seed, physics=False, perturb=p)
     result = twin.run(T)
     got = result.state_array(build.legs, build.modules, T)
@@ -87,10 +93,25 @@ def run_case(build: Build, want: np.ndarray, T: int, p: Perturbation, noise: flo
     )
     outage = twin.perturb.reset_modules()
     gaps = [g for m, g in result.servo_gaps.items() if m not in outage]
-    mean, _ = result.period_stats()
-    stalled = "!" if result.stalled else ""
-    return (f"{exact}/{build.legs * build.modules}{stalled} · {mean:.3f} · "
-            f"{max(gaps) * 1000:.0f}")  # fmt: skip
+    return exact, result.period_stats()[0], max(gaps), bool(result.stalled)
+
+
+def run_case(
+    build: Build, want: np.ndarray, T: int, p: Perturbation, noise: float, seeds: list[int]
+) -> str:
+    """One table cell, over ``seeds`` if the case draws anything (else one run counts for
+    all)."""
+    drawn = noise > 0 or p.timing_spread > 0 or p.clock_spread > 0 or p.start_spread > 0
+    runs = [
+        run_once(build, want, T, replace(p, seed=s), noise) for s in (seeds if drawn else seeds[:1])
+    ]
+    k = len(seeds) // len(runs)
+    exact = k * sum(r[0] for r in runs)
+    total = build.legs * build.modules * len(seeds)
+    mean = float(np.mean([r[1] for r in runs]))
+    gap = max(r[2] for r in runs)
+    stalled = "!" if any(r[3] for r in runs) else ""
+    return f"{exact}/{total}{stalled} · {mean:.3f} · {gap * 1000:.0f}"
 
 
 def main() -> None:
@@ -98,6 +119,7 @@ def main() -> None:
     parser.add_argument("--models", nargs="+", default=list(MODELS))
     parser.add_argument("-T", "--transitions", type=int, default=None)
     parser.add_argument("--seed", type=int, default=1, help="seed of every draw and the noise")
+    parser.add_argument("--seeds", type=int, default=1, help="runs per case with random draws")
     parser.add_argument("--quick", action="store_true", help="smoke subset")
     args = parser.parse_args()
     models = args.models if not args.quick or args.models != list(MODELS) else ["ca1d", "nnsin"]
@@ -113,9 +135,11 @@ def main() -> None:
             build = load_build(out)
             want = load_controller(source).states(T)
             for name, p, noise in table:
-                cells[model, name] = run_case(build, want, T, replace(p, seed=args.seed), noise)
+                seeds = list(range(args.seed, args.seed + args.seeds))
+                cells[model, name] = run_case(build, want, T, p, noise, seeds)
                 print(f"{model:9} {name:55} {cells[model, name]}", file=sys.stderr, flush=True)
-    print(f"\nT = {T}, seed {args.seed}; cell: exact modules/total · mean period s · longest "
+    seeds = f"{args.seed}..{args.seed + args.seeds - 1}"
+    print(f"\nT = {T}, seeds {seeds}; cell: exact modules/total · mean period s · longest "
           f"servo gap ms (! = stalled); {time.perf_counter() - start:.0f} s\n")  # fmt: skip
     print("| case | " + " | ".join(models) + " |")
     print("|---|" + "---|" * len(models))
