@@ -159,6 +159,27 @@ def test_ca1d_stays_exact_under_timing_and_clock_perturbations(
     np.testing.assert_array_equal(result.state_array(b.legs, b.modules, T), want)
 
 
+@pytest.mark.parametrize(
+    "p",
+    [
+        Perturbation(timing_spread=0.2, seed=1),
+        Perturbation(clock_spread=0.02, item_time_us=50.0, seed=1),
+    ],
+    ids=["spread20", "clock2-item50"],
+)
+def test_nnsin_stays_exact_under_spreads(
+    tmp_path_factory: pytest.TempPathFactory, p: Perturbation
+) -> None:
+    out = tmp_path_factory.getbasetemp() / "nnsin-build"
+    if not out.is_dir():
+        assert main(["compile", str(builtin_controller("nnsin")), "-o", str(out), "-q"]) == 0
+    b = load_build(out)
+    result = RobotTwin(b, physics=False, perturb=p).run(T)
+    assert result.stalled == []
+    want = load_controller(out / "controller.json").states(T)
+    np.testing.assert_array_equal(result.state_array(b.legs, b.modules, T), want)
+
+
 # ---- start-up and resets ----------------------------------------------------------------------
 def test_a_module_started_late_starts_its_program_late(build: Path) -> None:
     p = Perturbation(start_spread=1.0, seed=4)
