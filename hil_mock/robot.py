@@ -369,7 +369,7 @@ class RobotTwin:
                 return
             value ^= 1 << int(self.rng.integers(8))  # one bit flipped on the wire
             self.noise_events["flipped"] += 1
-        tx_bit_ns = self.ran[mid].clock.bit_ns(mode)  # issue 12 §1: the sender's bit time
+        tx_bit_ns = self.stamps[mid].clock.bit_ns(mode)  # issue 12 §1: the sender's bit time
         for peer, peer_pin in self.wires.get((mid, pin), ()):
             stamp = self.stamps.get(peer)
             if stamp is not None:
