@@ -416,7 +416,7 @@ def _options() -> list[Decorator]:
             type=float,
             default=None,
             metavar="US",
-            help="Stamp serial timing: US microseconds (× the module's timing) between two "
+            help="Stamp serial timing: US microseconds (× the module's speed) between two "
             "SERIN/SEROUT items; the receiver listens again US after the stop bit's mid-bit "
             "sample. Default: back-to-back bytes, listening again at the stop bit's end.",
         ),
