@@ -13,6 +13,7 @@ import click
 from bstool import fileio
 from bstool.moduleid import ModuleId, all_modules, parse_module
 from hil_mock.eeprom import Eeprom
+from hil_mock.perturb import Perturbation, draws_json, perturb_options, perturb_runner, serve_draws
 from hil_mock.progdevice import MODEL_IDS, ProgrammingDevice, Runner, default_runner
 from hil_mock.ptyendpoint import PtyEndpoint
 from hil_mock.runners import ScanRunner, preview_runner
@@ -69,6 +70,7 @@ def _runner(kind: str) -> Runner | None:
     help="What runs slot 0: the token interpreter, a scan for an ASCII announcement (test "
     "images), or nothing.",
 )
+@perturb_options(add_seed=True, usage_errors=True)  # issue 12 §1
 def serve(
     modules: str,
     timing: str,
@@ -76,12 +78,17 @@ def serve(
     eeprom_dir: Path | None,
     ports_file: Path | None,
     runner: str,
+    perturb: Perturbation,  # issue 12 §1
 ) -> None:
     """Serve virtual stamps on ptys; prints one "L<i>.M<j> /dev/pts/N" line each."""
     endpoints: dict[str, PtyEndpoint] = {}
-    for mid in _modules(modules):
+    mids = _modules(modules)
+    draws = serve_draws(perturb, mids)  # issue 12 §1
+    for mid in mids:
         eeprom = Eeprom(eeprom_dir / f"{mid.label}.eeprom" if eeprom_dir else None)
-        device = ProgrammingDevice(eeprom, model=model, runner=_runner(runner))
+        module_runner = _runner(runner)
+        perturb_runner(module_runner, perturb, draws[mid])  # issue 12 §1
+        device = ProgrammingDevice(eeprom, model=model, runner=module_runner)
         endpoints[mid.label] = PtyEndpoint(device, timing=timing)
     if ports_file:  # before printing, so a reader of stdout finds the file complete
         fileio.write_text(
@@ -89,6 +96,8 @@ def serve(
         )
     for label, ep in endpoints.items():
         click.echo(f"{label} {ep.path}")
+    if not perturb.neutral:  # issue 12 §1: what was drawn
+        click.echo("perturbations " + json.dumps(draws_json(perturb, draws)), err=True)
     sys.stdout.flush()
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())

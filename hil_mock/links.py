@@ -55,7 +55,8 @@ class Links:
                 return
             value ^= 1 << int(self.rng.integers(8))  # one bit flipped on the wire
             self.noise_events["flipped"] += 1
+        tx_bit_ns = self.stamps[mid].clock.bit_ns(mode)  # the sender's own bit time
         for peer, peer_pin in self.wires.get((mid, pin), ()):
             stamp = self.stamps.get(peer)
             if stamp is not None:
-                stamp.deliver_byte(peer_pin, value, start_ns, mode)
+                stamp.deliver_byte(peer_pin, value, start_ns, mode, tx_bit_ns)

@@ -22,6 +22,7 @@ from bstool.wire import announce
 from hil_mock.body import LIMP_AFTER_S, Body, ServoTrack
 from hil_mock.faults import Faults, dying_modules, failed_modules
 from hil_mock.links import Links, wires
+from hil_mock.perturb import Perturbation, PerturbRun
 from hil_mock.schedule import CHUNK_STEPS, Scheduler
 from hil_mock.stamp import Stamp, StampIO
 from hil_mock.twin_result import NS, ModuleRecord, TwinResult, ram_reader
@@ -95,6 +96,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         noise: float = 0.0,
         seed: int = 0,
         physics: bool = True,
+        perturb: Perturbation | None = None,  # issue 12 §1
     ) -> None:
         self.build = build
         if not 0.0 <= noise <= 1.0:
@@ -139,6 +141,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         self.reference = live[0] if live else next(iter(self.stamps), None)
         self.t_ns = 0
         self.path: list[tuple[float, float]] = []
+        self.perturb = PerturbRun.install(self, perturb)  # issue 12 §1: clocks, starts, resets
 
     def _servo_pulse(self, mid: ModuleId, servo: ServoTrack, start_ns: int, width_ns: int) -> None:
         if mid not in self.stamps:
@@ -196,7 +199,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         ref = self.records[self.reference]
         done_before = 0
         while self.t_ns < limit_ns:
-            self._advance_stamps(self.t_ns + chunk_ns)
+            self.perturb.advance(self, self.t_ns + chunk_ns)  # issue 12 §1 (power events)
             self._apply_servos()
             if self.sim is not None:
                 import mujoco

@@ -8,9 +8,13 @@ is heard depends on what was really flashed.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from bstool.wire import announce
 from hil_mock.eeprom import Eeprom
+
+if TYPE_CHECKING:
+    from hil_mock.stamp.clock import StampClock
 
 
 class AnnounceRunner:
@@ -48,12 +52,19 @@ class InterpreterRunner:
     """Runs slot 0 on the token interpreter (hil_mock.stamp) for ``seconds`` of virtual time
     and emits what the program sent on pin 16 (DEBUG): a bounded preview, enough for the
     start-up announcement. A program the interpreter cannot run emits nothing (see ``error``).
+    ``clock`` and ``start_s`` are the module's perturbations (hil_mock/perturb.py): its timing
+    factors, and when it starts after a reset (virtual time; the preview still covers
+    ``seconds`` of running).
     """
 
-    def __init__(self, seconds: float = 0.05) -> None:
+    def __init__(
+        self, seconds: float = 0.05, clock: StampClock | None = None, start_s: float = 0.0
+    ) -> None:
         self.seconds = seconds
         self.starts = 0
         self.error: str | None = None
+        self.clock = clock
+        self.start_s = start_s
 
     def start(self, eeprom: Eeprom, emit: Callable[[bytes], None]) -> None:
         self.starts += 1
@@ -61,7 +72,8 @@ class InterpreterRunner:
         try:
             from hil_mock.stamp.interpreter import Stamp
 
-            stamp = Stamp(eeprom)
+            stamp = Stamp(eeprom, clock=self.clock)
+            stamp.t = round(self.start_s * 1e9)
             stamp.run(self.seconds)
         except Exception as exc:  # a half-written or foreign image: the stamp just sits there
             self.error = f"{type(exc).__name__}: {exc}"

@@ -18,6 +18,7 @@ from bstool.controllers import Controller, load_controller
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from hil_mock.check import TwinCheck, check, reference_simulator
+from hil_mock.perturb import Perturbation
 from hil_mock.robot import CHUNK_STEPS, RobotTwin
 from hil_mock.twin_result import TwinResult
 
@@ -42,6 +43,7 @@ class TwinOptions:
     timeout_s: float | None = None
     video: str | Path | None = None
     progress: Callable[[int], object] | None = None  # transitions done (increments)
+    perturb: Perturbation | None = None  # issue 12 §1: timing, clocks, power-up, resets
 
 
 @dataclass
@@ -54,6 +56,7 @@ class TwinReport:
     flash_status: dict[str, str] | None  # module label -> flashed... (via_flash only)
     flash_seconds: float
     twin_seconds: float  # wall-clock time of the twin run
+    perturbations: dict[str, object] = field(default_factory=dict)  # what was drawn (--json)
 
     @property
     def ok(self) -> bool:
@@ -96,6 +99,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
             noise=options.noise,
             seed=options.seed,
             physics=options.physics,
+            perturb=options.perturb,
         )
         t0 = time.perf_counter()
         result = _run(twin, options)
@@ -113,7 +117,15 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         sim_distance = reference_simulator(build).run(reference).distance
     report = check(build, result, reference, options.transitions, sim_distance)
     return TwinReport(
-        build, result, report, reference, sim_distance, flash_status, flash_seconds, twin_seconds
+        build,
+        result,
+        report,
+        reference,
+        sim_distance,
+        flash_status,
+        flash_seconds,
+        twin_seconds,
+        perturbations=twin.perturb.report(),
     )
 
 

@@ -11,6 +11,7 @@ import click
 import hil_mock  # noqa: F401  (registers the twin's bstwin:// serial URL handler)
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_failure_time, parse_module
+from hil_mock.perturb import Perturbation, perturb_options
 
 if TYPE_CHECKING:
     from bstool.controllers import Controller
@@ -52,7 +53,7 @@ if TYPE_CHECKING:
     show_default=True,
     help="Chance that a byte on a link is dropped or has a bit flipped.",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the link noise.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random draw.")
 @click.option(
     "--controller",
     type=click.Path(dir_okay=False),
@@ -80,6 +81,7 @@ if TYPE_CHECKING:
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@perturb_options()  # --timing-scale --timing-spread --clock-spread --start-spread --reset ...
 def command(
     build: str,
     transitions: int,
@@ -96,6 +98,7 @@ def command(
     timeout_s: float | None,
     as_json: bool,
     quiet: bool,
+    perturb: Perturbation,
 ) -> None:
     """Run BUILD (a `bstool compile` output) on the twin: every module's program on its own
     virtual BS2sx, the modules wired as WIRING.md says, each servo driving the simulated robot.
@@ -135,6 +138,7 @@ def command(
             timeout_s=timeout_s,
             video=video,
             progress=bar.update,
+            perturb=perturb,
         )
         run = run_twin(b, options)
     report, result = run.check, run.result
@@ -144,6 +148,7 @@ def command(
         out["path"] = result.path.tolist()
         out["virtual_seconds"] = result.virtual_seconds
         out["instructions"] = result.instructions
+        out["perturbations"] = run.perturbations
         click.echo(json.dumps(out))
     else:
         _print(report, result)

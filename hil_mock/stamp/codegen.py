@@ -17,7 +17,6 @@ from bstool.tokenizer import tokens as T
 from . import arith
 from .decoder import Decoded, Instr, Item, constant_stack, decode_image, label_address
 from .errors import NotInTwin, StampFault
-from .timing import PAUSE_UNIT_NS, instruction_ns
 
 I = T.Instruction  # noqa: E741
 
@@ -214,7 +213,7 @@ class _Translator:
             lines.append(f"    return s._notimpl({ins.name!r}, {a})")
             return
         lines.append("    r = s.ram")
-        lines.append(f"    s.t += {instruction_ns(ins.bits)}")
+        lines.append(f"    s.t += s._ins[{ins.bits}]")  # the stamp's clock (.clock)
         g = ExprGen(lines)
         g.run(ins.args)
         st = g.stack
@@ -228,7 +227,7 @@ class _Translator:
             emit(f"{_PIN_OPS[I(c)]}(s, {st[-1]})")
             emit(f"return {nxt}")
         elif c == I.PAUSE:
-            emit(f"s.t += {st[-1]} * {PAUSE_UNIT_NS}")
+            emit(f"s.t += {st[-1]} * s._pause_ns")
             emit(f"return {nxt}")
         elif c == I.PULSOUT:
             emit(f"s._pulsout({st[-1]}, {st[-2]})")

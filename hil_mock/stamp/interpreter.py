@@ -19,6 +19,7 @@ from typing import Any
 from bstool.tokenizer import tokens as T
 
 from . import timing
+from .clock import NOMINAL, StampClock, frame_received
 from .codegen import TX_PC, WAIT_PC, Program, load_program
 from .errors import NotInTwin, StampFault
 from .memory import Memory, SlotStore, as_slot_store
@@ -80,7 +81,14 @@ class RecordingIO(StampIO):
 class Stamp:
     """One BS2sx: EEPROM slots, RAM/scratchpad/pins, the running program and its clock."""
 
-    def __init__(self, eeprom: object, *, io: StampIO | None = None, name: str = "stamp") -> None:
+    def __init__(
+        self,
+        eeprom: object,
+        *,
+        io: StampIO | None = None,
+        name: str = "stamp",
+        clock: StampClock | None = None,
+    ) -> None:
         self.eeprom: SlotStore = as_slot_store(eeprom)
         self.io = io if io is not None else RecordingIO()
         self.name = name
@@ -91,7 +99,17 @@ class Stamp:
         self.instructions = 0  # executed steps (SEROUT bytes count one each)
         self.brk = False  # set by an instruction to leave the inner run loop
         self.event = False  # set when a serial byte went out (run_until returns)
+        self.rx_missed = 0  # bytes offered while not listening on that pin (no receive buffer)
+        self.rx_mismatched = 0  # bytes lost to a bit-time mismatch beyond the UART's tolerance
+        self.set_clock(clock or NOMINAL)
         self.reset()
+
+    def set_clock(self, clock: StampClock) -> None:
+        """This stamp's timing factors (:mod:`.clock`); the translated code reads ``_ins`` and
+        ``_pause_ns``."""
+        self.clock = clock
+        self._ins = clock.instruction
+        self._pause_ns = clock.pause_ns
 
     # ---- life cycle ---------------------------------------------------------------------------
     def reset(self, slot: int = 0) -> None:
@@ -175,18 +193,33 @@ class Stamp:
         return self.status
 
     # ---- serial input -------------------------------------------------------------------------
-    def deliver_byte(self, pin: int, value: int, start_ns: int, mode: int | None = None) -> bool:
-        """Offer a byte whose start bit begins at ``start_ns`` on ``pin``. It is taken only if
-        the stamp is in SERIN on that pin since at most ``start_ns`` and before the deadline
-        (no receive buffer), at the same bit rate. Returns True if taken."""
+    def deliver_byte(
+        self,
+        pin: int,
+        value: int,
+        start_ns: int,
+        mode: int | None = None,
+        tx_bit_ns: float | None = None,
+    ) -> bool:
+        """Offer a byte whose start bit begins at ``start_ns`` on ``pin``, sent at baudmode
+        ``mode`` with bit time ``tx_bit_ns`` (default: the nominal one of ``mode``; mode None:
+        this stamp's own). It is taken only if the stamp is in SERIN on that pin since at most
+        ``start_ns`` and before the deadline (no receive buffer), and the two bit times are
+        within the UART's tolerance (:func:`.clock.frame_received`). Returns True if taken."""
         w = self.wait
         if self.status is not Status.WAITING or w is None or w.pin != pin:
+            self.rx_missed += 1
             return False
         if start_ns < w.since or (w.deadline is not None and start_ns >= w.deadline):
+            self.rx_missed += 1
             return False
-        if mode is not None and (mode & 0x0FFF) != (w.mode & 0x0FFF):
-            return False  # different bit rate: garbage, counted as lost
-        self.t = start_ns + timing.byte_ns(w.mode)
+        clock = self.clock
+        if tx_bit_ns is None and mode is not None:
+            tx_bit_ns = timing.byte_ns(mode) / timing.BITS_PER_BYTE
+        if tx_bit_ns is not None and not frame_received(tx_bit_ns, clock.bit_ns(w.mode)):
+            self.rx_mismatched += 1
+            return False  # garbage: counted as lost
+        self.t = start_ns + clock.rx_done_ns(w.mode, tx_bit_ns)
         self.instructions += 1
         item = self._rx_item
         assert item is not None
@@ -253,7 +286,7 @@ class Stamp:
         return returns[ident]
 
     def _run(self, slot: int) -> int:
-        self.t += timing.RUN_NS
+        self.t += self.clock.overhead_ns(timing.RUN_NS)
         self._enter_slot(slot & 7)
         self.brk = True
         return self.pc
@@ -298,7 +331,7 @@ class Stamp:
         pin &= 15
         level = 1 - ((self.memory.outs >> pin) & 1)
         self._drive(pin, 1 - level)
-        width = units * timing.PULSOUT_UNIT_NS
+        width = self.clock.pulse_ns(units)
         self.io.pulse(self, pin, self.t, width, level)
         self.t += width
 
@@ -312,7 +345,7 @@ class Stamp:
         self._tx_i = 0
         self._tx_pin = pin if pin < 16 else T.SERIAL_PIN
         self._tx_mode = mode
-        self._tx_gap = pace * timing.PAUSE_UNIT_NS
+        self._tx_gap = pace * self._pause_ns + self.clock.item_gap_ns
         self._tx_next = nxt
         return TX_PC
 
@@ -322,7 +355,7 @@ class Stamp:
         if self._tx_pin == T.SERIAL_PIN:
             self.debug.append(b)
         self.io.serial_out(self, self._tx_pin, b, self.t, self._tx_mode)
-        self.t += timing.byte_ns(self._tx_mode)
+        self.t += self.clock.byte_ns(self._tx_mode)
         self._tx_i = i + 1
         self.brk = True
         self.event = True
@@ -348,7 +381,7 @@ class Stamp:
         self._rx = list(items)
         self._rx_next = nxt
         self._rx_label = tlabel if tlabel is not None else nxt
-        self._rx_timeout = (timeout or 0) * timing.SERIN_TIMEOUT_UNIT_NS
+        self._rx_timeout = self.clock.timeout_ns(timeout or 0)
         deadline = self.t + self._rx_timeout if timeout is not None else None
         self.wait = SerialWait(pin, mode, self.t, deadline)
         self.status = Status.WAITING
