@@ -115,7 +115,18 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
     sim_distance = None
     if reference is not None and options.physics:
         sim_distance = reference_simulator(build).run(reference).distance
+    limited: list[ModuleId] = []
+    if reference is not None and ctrl is not None:
+        reference, limited = _documented_limit(build, ctrl, reference, options)
     report = check(build, result, reference, options.transitions, sim_distance)
+    if limited:
+        report.notes.append(
+            "modules after two neighbouring dead NN modules ("
+            + ", ".join(m.label for m in limited)
+            + ") are compared with the compiled programs' emulation: they cannot hear the modules"
+            " before the pair and keep the last upstream states they received (the documented"
+            ' limit, docs/compile.md "Two neighbours dying one after the other")'
+        )
     return TwinReport(
         build,
         result,
@@ -147,3 +158,46 @@ def _run(twin: RobotTwin, options: TwinOptions) -> TwinResult:
                 rec.frame(t.sim.data)
 
         return twin.run(options.transitions, on_chunk=on_chunk, **run)  # type: ignore[arg-type]
+
+
+def after_dead_pairs(legs: int, modules: int, dead: Sequence[ModuleId], nn: bool) -> list[ModuleId]:
+    """NN modules that come after two neighbouring dead (or dying) modules on their leg: no
+    frame from before the pair reaches them (protocol/link.md §2, docs/compile.md)."""
+    if not nn:
+        return []
+    gone = set(dead)
+    out = []
+    for i in range(legs):
+        first = next(
+            (
+                j
+                for j in range(modules - 1)
+                if ModuleId(i, j) in gone and ModuleId(i, j + 1) in gone
+            ),
+            None,
+        )
+        if first is not None:
+            out += [ModuleId(i, j) for j in range(first + 2, modules) if ModuleId(i, j) not in gone]
+    return out
+
+
+def _documented_limit(
+    build: Build, ctrl: Controller, reference: np.ndarray, options: TwinOptions
+) -> tuple[np.ndarray, list[ModuleId]]:
+    """The reference with the documented limit applied: modules after two neighbouring dead NN
+    modules follow ``bstool.compile.emulate.run`` (what the compiled tables give them)."""
+    from bstool.compile import emulate
+    from bstool.compile.calibration import DEFAULT
+    from bstool.compile.plan import build_plans
+    from bstool.controllers import NN_MODELS
+
+    dead = [*options.failed, *options.die]
+    limited = after_dead_pairs(build.legs, build.modules, dead, ctrl.model in NN_MODELS)
+    if not limited:
+        return reference, []
+    plans = build_plans(ctrl, DEFAULT, build.period, build.manifest.controller.hash8)
+    emulated = emulate.run(plans, options.transitions, dead=options.failed, die=options.die)
+    out = reference.copy()
+    for mid in limited:
+        out[:, mid.leg, mid.module] = emulated[: len(out), mid.leg, mid.module]
+    return out, limited

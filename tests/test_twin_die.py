@@ -116,3 +116,26 @@ def test_twin_cli_die(build: Path, capsys: pytest.CaptureFixture[str]) -> None:
         assert said in err and "Traceback" not in err
     assert main([*args, "--die", "0.1@2", "--fail", "0.1"]) == 2
     assert "both failed from power-up and dying" in capsys.readouterr().err
+
+
+def test_twin_cli_names_the_documented_limit(
+    nnsin_build: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 16's command: exit 0, every module before and at the pair equal to `bstool states
+    --fail-at`, the two after it compared with the compiled programs' emulation, and said so."""
+    args = ["twin", str(nnsin_build), "-T", "14", "--no-physics", "-q"]
+    assert main([*args, "--die", "4.2@4", "--die", "4.3@10"]) == 0
+    out = capsys.readouterr().out
+    assert "EQUAL to" in out and "(L4.M4, L4.M5)" in out and "documented limit" in out
+    assert main([*args, "--die", "4.2@4"]) == 0  # one death: no limit, no note
+    assert "note:" not in capsys.readouterr().out
+
+
+def test_after_dead_pairs() -> None:
+    from hil_mock.session import after_dead_pairs
+
+    m = ModuleId
+    assert after_dead_pairs(5, 6, [m(4, 2), m(4, 3)], nn=True) == [m(4, 4), m(4, 5)]
+    assert after_dead_pairs(5, 6, [m(4, 2), m(4, 3)], nn=False) == []
+    assert after_dead_pairs(5, 6, [m(4, 2), m(4, 4)], nn=True) == []  # not neighbours
+    assert after_dead_pairs(5, 6, [m(1, 4), m(1, 5)], nn=True) == []  # at the tip

@@ -174,7 +174,12 @@ def _print(report: TwinCheck, result: TwinResult) -> None:
     T = report.transitions
     if report.sim_distance is not None or report.mismatched or report.states_equal:
         verdict = "EQUAL to" if report.states_equal else "DIFFERENT from"
-        click.echo(f"states:     every module's {T + 1} states are {verdict} `bstool states`")
+        within = " (with the limit below)" if report.notes else ""
+        click.echo(
+            f"states:     every module's {T + 1} states are {verdict} `bstool states`{within}"
+        )
+    for note in report.notes:
+        click.echo(f"            note: {note}")
     if report.first_mismatch:
         fm = report.first_mismatch
         click.echo(
