@@ -106,7 +106,8 @@ def check_dir(
     return p
 
 
-def _alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` still runs (this one included): its temporaries are not stale."""
     if pid == os.getpid():
         return True
     try:
@@ -134,7 +135,7 @@ def clean_stale(path: str | os.PathLike[str]) -> list[Path]:
         if not m or m.group("name") != p.name:
             continue
         pid = int(m.group("pid") or m.group("fpid"))
-        if _alive(pid):
+        if process_alive(pid):
             continue
         previous = entry / "previous"
         if ".old-" in entry.name and previous.exists() and not (p.exists() or p.is_symlink()):

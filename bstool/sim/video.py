@@ -16,7 +16,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from bstool import fileio
+from bstool import fileio, outputs
 from bstool.errors import InputError
 from bstool.sim.simulator import SimResult, Simulator
 
@@ -111,22 +111,15 @@ def clean_stale_scratch(folder: str | os.PathLike[str] | None = None) -> list[Pa
     removed = []
     for entry in root.iterdir() if root.is_dir() else ():
         m = pattern.match(entry.name)
-        if m and entry.is_dir() and not entry.is_symlink() and not _alive(int(m.group(1))):
+        if (
+            m
+            and entry.is_dir()
+            and not entry.is_symlink()
+            and not outputs.process_alive(int(m.group(1)))
+        ):
             shutil.rmtree(entry, ignore_errors=True)
             removed.append(entry)
     return removed
-
-
-def _alive(pid: int) -> bool:
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's process
-        return True
-    return True
 
 
 def render_video(
