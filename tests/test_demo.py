@@ -30,3 +30,15 @@ def test_demo_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
     assert main(["demo", "--fail", "9.9", "-q"]) == 2
     assert "unknown module 9.9" in capsys.readouterr().err
     assert main(["demo", "--controller", str(tmp_path / "missing.json"), "-q"]) == 2
+
+
+def test_demo_out_refuses_a_foreign_folder_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    assert main(["demo", "--model", "ca1d", "-T", "2", "--out", str(mine), "-q"]) == 2
+    captured = capsys.readouterr()
+    assert "--force" in captured.err and "controller" not in captured.out  # nothing ran
+    assert (mine / "notes.txt").read_text() == "keep"

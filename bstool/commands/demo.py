@@ -44,6 +44,9 @@ from bstool.builtin import DEFAULT_MODEL, MODELS, builtin_controller
     type=click.Path(file_okay=False),
     help="Keep the build here (default: a temporary directory).",
 )
+@click.option(
+    "--force", is_flag=True, help="With --out: replace a non-empty folder that is not a build."
+)
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
 def command(
     model: str,
@@ -51,21 +54,32 @@ def command(
     transitions: int,
     failed: tuple[str, ...],
     out: str | None,
+    force: bool,
     quiet: bool,
 ) -> None:
     """Show that what runs on the stamps is what evolved: compile a controller, flash it into
     30 virtual BS2sx modules over the serial programming protocol, run them on the simulated
     robot, and print what the simulator predicted next to what the twin did."""
     source = Path(controller) if controller else builtin_controller(model)
+    if out:  # before any work or output: a folder it may not replace, or cannot write
+        from bstool.compile.build import check_output
+
+        check_output(Path(out), force=force, protect=(source,))
     with tempfile.TemporaryDirectory(prefix="bstool-demo-") as tmp:
         build_dir = Path(out) if out else Path(tmp) / "build"
-        ok = _demo(source, build_dir, transitions, failed, quiet)
+        ok = _demo(source, build_dir, transitions, failed, quiet, force=force)
     if not ok:
         click.get_current_context().exit(1)
 
 
 def _demo(
-    source: Path, build_dir: Path, transitions: int, failed: tuple[str, ...], quiet: bool
+    source: Path,
+    build_dir: Path,
+    transitions: int,
+    failed: tuple[str, ...],
+    quiet: bool,
+    *,
+    force: bool = False,
 ) -> bool:
     from tqdm import tqdm
 
@@ -82,7 +96,7 @@ def _demo(
         f"hash {ctrl.hash()[:8]}")  # fmt: skip
 
     t0 = time.perf_counter()
-    result = compile_controller(source, build_dir)
+    result = compile_controller(source, build_dir, force=force)
     slots = sum(len(m.slots) for m in result.manifest.modules)
     say(f"compile      {len(result.manifest.modules)} PBASIC programs, {slots} slots "
         f"tokenized ({time.perf_counter() - t0:.1f} s) -> {build_dir}")  # fmt: skip

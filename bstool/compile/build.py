@@ -68,7 +68,7 @@ def compile_controller(
     ``tokenize=False`` writes the PBASIC sources only (no slot images: flash and the twin
     refuse such a build); the golden tests use it."""
     inputs = (controller,) + ((calibration,) if calibration is not None else ())
-    _check_output(Path(out_dir), force=force, protect=inputs)  # before any work
+    check_output(Path(out_dir), force=force, protect=inputs)  # before any work
     ctrl = load_controller(controller)
     return compile_loaded(
         ctrl,
@@ -99,7 +99,7 @@ def compile_loaded(
 ) -> BuildResult:
     out = Path(out_dir)
     protect = (*protect, *((calibration,) if calibration is not None else ()))
-    _check_output(out, force=force, protect=protect)
+    check_output(out, force=force, protect=protect)
     full_hash = controller_hash(ctrl)
     calib: Calibration = (
         DEFAULT if calibration is None else load_calibration(calibration, ctrl.legs, ctrl.modules)
@@ -215,7 +215,7 @@ def _overflow(plan: ModulePlan, slot: int) -> int:
     return max(0, int(image.program_bytes) + data - SLOT_BYTES)
 
 
-def _check_output(
+def check_output(
     out: Path, *, force: bool = False, protect: Sequence[str | os.PathLike[str]] = ()
 ) -> None:
     """Refuse to replace anything but a previous build (checked before any work): a folder is
