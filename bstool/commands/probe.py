@@ -100,7 +100,7 @@ def _print(result: ProbeResult, output: Path) -> None:
     m = result.model
     r = m.instruction_time_ratio
     click.echo(
-        f"{result.port}: statements take {r.value:.3f} ± {r.sd or 0:.3f} × the timing model "
+        f"{result.port}: statements take {r.value:.4f} ± {r.sd or 0:.4f} × the timing model "
         f"({result.markers} markers, {result.lost} lost, {result.seconds:.1f} s)"
     )
     d = timingfile.DEFAULT.coefficients()
