@@ -339,3 +339,10 @@ def test_probe_measures_the_served_twin(scale: float, tmp_path: Path) -> None:
     model = tf.load(out)
     assert model.measured and model.instruction_time_ratio.value == ratio
     assert model.pause_unit_ms.value == pytest.approx(1.0, rel=0.03)
+
+
+def test_an_in_process_twin_says_to_serve_one(cli: Callable[..., Any], tmp_path: Path) -> None:
+    run = cli("probe", "--port", "bstwin://probe-preview", "--quick", "-q",
+              "-o", str(tmp_path / "t.json"))  # fmt: skip
+    assert run.code != 0 and "stopped sending after" in run.err
+    assert "hil_mock serve --timing real" in run.err and "Traceback" not in run.err

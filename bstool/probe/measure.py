@@ -86,12 +86,16 @@ def read_markers(
         data = ser.read(1)
         t = clock()
         if not data:
+            hint = NOT_RUNNING_HINT if index == 0 else "check the cable and power, then try again"
+            if port.startswith("bstwin://"):
+                hint = (
+                    "a bstwin:// stamp runs a 50 ms preview: probe a served twin instead "
+                    "(python -m hil_mock serve --timing real runs its stamps in real time)"
+                )
             raise DeviceError(
                 f"the probe program on {port} stopped sending after {index} of {total} markers "
                 f"(nothing for {wait:.1f} s)",
-                hint=NOT_RUNNING_HINT
-                if index == 0
-                else "check the cable and power, then run bstool probe again",
+                hint=hint,
             )
         value = data[0]
         r, m = divmod(index, per)
