@@ -80,7 +80,9 @@ class RealtimeRunner:
         self.starts += 1
         self.error = None
         stop = self._stop = threading.Event()
-        image = [bytes(eeprom.slot(n)) for n in range(T.SLOTS)]  # the EEPROM as it is now
+        # a copy of the EEPROM as it is now: the next session may write it while this runs
+        # (a WRITE of the program is not kept, unlike the preview's)
+        image = [bytes(eeprom.slot(n)) for n in range(T.SLOTS)]
         thread = threading.Thread(
             target=self._run, args=(image, emit, stop), name="stamp realtime", daemon=True
         )
