@@ -54,7 +54,7 @@ def _runner(kind: str, timing: str = "none") -> Runner | None:
     type=click.Choice(["real", "none"]),
     default="real",
     show_default=True,
-    help="real: answers paced at 9600 baud; none: at once.",
+    help="real: answers paced at 9600 baud, slot 0 run in real time; none: at once.",
 )
 @click.option("--model", type=click.Choice(sorted(MODEL_IDS)), default="BS2sx")
 @click.option(

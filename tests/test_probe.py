@@ -307,12 +307,19 @@ def test_serve_rejects_a_bad_timing_model(tmp_path: Path) -> None:
 
 # ---- end to end over a pty with real 9600-baud pacing ---------------------------------------
 @pytest.mark.slow
-@pytest.mark.parametrize("scale", [1.8, 1.0])
-def test_probe_measures_the_served_twin(scale: float, tmp_path: Path) -> None:
-    """`python -m hil_mock serve --timing-scale F --timing real` is measured as F within 3 %."""
+@pytest.mark.parametrize(("scale", "file_ratio"), [(1.8, None), (1.0, None), (1.0, 1.5)])
+def test_probe_measures_the_served_twin(
+    scale: float, file_ratio: float | None, tmp_path: Path
+) -> None:
+    """`python -m hil_mock serve --timing-scale F --timing real` is measured as F within 3 %;
+    served with a timing file (--timing-model) as the file's ratio."""
+    model_args = []
+    if file_ratio is not None:
+        model_args = ["--timing-model", str(_ratio_file(tmp_path, file_ratio))]
+        scale = file_ratio
     serve = subprocess.Popen(
         [sys.executable, "-m", "hil_mock", "serve", "--timing", "real",
-         "--timing-scale", str(scale)],
+         "--timing-scale", str(1.0 if file_ratio else scale), *model_args],
         stdout=subprocess.PIPE,
         stderr=subprocess.DEVNULL,
         text=True,
