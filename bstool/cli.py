@@ -45,6 +45,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Compile a controller into PBASIC programs and images per module.",
     ),
     "flash": ("bstool.commands.flash", "Upload images to BS2sx modules over a serial port."),
+    "probe": ("bstool.commands.probe", "Measure a stamp's timing; write a bstool.timing/1 file."),
     "twin": (
         "bstool.commands.twin",
         "Run a compiled robot on 30 virtual BS2sx modules driving MuJoCo.",

@@ -11,11 +11,14 @@ from pathlib import Path
 import click
 
 from bstool import fileio
+from bstool.errors import InputError
 from bstool.moduleid import ModuleId, all_modules, parse_module
 from hil_mock.eeprom import Eeprom
+from hil_mock.measured import use_file
 from hil_mock.perturb import Perturbation, draws_json, perturb_options, perturb_runner, serve_draws
 from hil_mock.progdevice import MODEL_IDS, ProgrammingDevice, Runner, default_runner
 from hil_mock.ptyendpoint import PtyEndpoint
+from hil_mock.realtime import RealtimeRunner
 from hil_mock.runners import ScanRunner, preview_runner
 
 
@@ -32,11 +35,13 @@ def _modules(spec: str) -> list[ModuleId]:
     return [parse_module(s) for s in spec.split(",") if s.strip()]
 
 
-def _runner(kind: str) -> Runner | None:
+def _runner(kind: str, timing: str = "none") -> Runner | None:
     if kind == "scan":
         return ScanRunner()
     if kind == "none":
         return None
+    if timing == "real":  # issue 13 §2: DEBUG bytes leave when the program sends them
+        return RealtimeRunner()
     return default_runner() or preview_runner()
 
 
@@ -49,7 +54,7 @@ def _runner(kind: str) -> Runner | None:
     type=click.Choice(["real", "none"]),
     default="real",
     show_default=True,
-    help="real: answers paced at 9600 baud; none: at once.",
+    help="real: answers paced at 9600 baud, slot 0 run in real time; none: at once.",
 )
 @click.option("--model", type=click.Choice(sorted(MODEL_IDS)), default="BS2sx")
 @click.option(
@@ -70,6 +75,11 @@ def _runner(kind: str) -> Runner | None:
     help="What runs slot 0: the token interpreter, a scan for an ASCII announcement (test "
     "images), or nothing.",
 )
+@click.option(  # issue 13 §2
+    "--timing-model",
+    type=click.Path(dir_okay=False),
+    help="A bstool.timing/1 file (bstool probe): the stamps' measured timing model.",
+)
 @perturb_options(add_seed=True, usage_errors=True)  # issue 12 §1
 def serve(
     modules: str,
@@ -78,15 +88,21 @@ def serve(
     eeprom_dir: Path | None,
     ports_file: Path | None,
     runner: str,
+    timing_model: str | None,  # issue 13 §2
     perturb: Perturbation,  # issue 12 §1
 ) -> None:
-    """Serve virtual stamps on ptys; prints one "L<i>.M<j> /dev/pts/N" line each."""
+    """Serve virtual stamps on ptys; prints one "L<i>.M<j> /dev/pts/N" line each. With
+    --timing real, slot 0 runs in real time on the interpreter (hil_mock/realtime.py)."""
+    try:  # issue 13 §2
+        use_file(timing_model)
+    except InputError as exc:
+        raise click.UsageError(f"{exc} ({exc.hint})" if exc.hint else str(exc)) from None
     endpoints: dict[str, PtyEndpoint] = {}
     mids = _modules(modules)
     draws = serve_draws(perturb, mids)  # issue 12 §1
     for mid in mids:
         eeprom = Eeprom(eeprom_dir / f"{mid.label}.eeprom" if eeprom_dir else None)
-        module_runner = _runner(runner)
+        module_runner = _runner(runner, timing)
         perturb_runner(module_runner, perturb, draws[mid])  # issue 12 §1
         device = ProgrammingDevice(eeprom, model=model, runner=module_runner)
         endpoints[mid.label] = PtyEndpoint(device, timing=timing)

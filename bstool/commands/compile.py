@@ -39,6 +39,12 @@ import click
 @click.option(
     "--force", is_flag=True, help="Replace a non-empty output folder that is not a bstool build."
 )
+@click.option(  # issue 13 §2
+    "--timing",
+    "timing_file",
+    type=click.Path(dir_okay=False),
+    help="A bstool.timing/1 file (bstool probe): estimate with the stamps' measured timing.",
+)
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 def command(
     controller: str,
@@ -47,6 +53,7 @@ def command(
     period: float | None,
     modules: tuple[str, ...],
     force: bool,
+    timing_file: str | None,  # issue 13 §2
     quiet: bool,
 ) -> None:
     """Compile CONTROLLER (best.json) into one PBASIC program per module (docs/compile.md):
@@ -63,6 +70,7 @@ def command(
         modules=modules,
         progress=not quiet and sys.stderr.isatty(),
         force=force,
+        timing=timing_file,  # issue 13 §2
     )
     if quiet:
         return

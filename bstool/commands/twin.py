@@ -81,6 +81,12 @@ if TYPE_CHECKING:
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@click.option(  # issue 13 §2
+    "--timing",
+    "timing_file",
+    type=click.Path(dir_okay=False),
+    help="A bstool.timing/1 file (bstool probe): the stamps' measured timing model.",
+)
 @perturb_options()  # --timing-scale --timing-spread --clock-spread --start-spread --reset ...
 def command(
     build: str,
@@ -98,6 +104,7 @@ def command(
     timeout_s: float | None,
     as_json: bool,
     quiet: bool,
+    timing_file: str | None,  # issue 13 §2
     perturb: Perturbation,
 ) -> None:
     """Run BUILD (a `bstool compile` output) on the twin: every module's program on its own
@@ -140,7 +147,13 @@ def command(
             progress=bar.update,
             perturb=perturb,
         )
-        run = run_twin(b, options)
+        from hil_mock import measured  # issue 13 §2: the measured timing model, for this run
+
+        measured.use_file(timing_file)
+        try:
+            run = run_twin(b, options)
+        finally:
+            measured.use(None)
     report, result = run.check, run.result
     if as_json:
         out = report.to_json()

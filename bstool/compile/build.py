@@ -11,16 +11,18 @@ from typing import Any
 
 from tqdm import tqdm
 
-from bstool import buildfile, fileio, outputs
+from bstool import buildfile, fileio, outputs, timingfile
 from bstool.compile import describe
 from bstool.compile.calibration import DEFAULT, Calibration, load_calibration
 from bstool.compile.plan import ModulePlan, build_plans, estimates, exchange_ms
 from bstool.compile.render import render_module
 from bstool.compile.results import ModuleResult, SlotResult
+from bstool.compile.timing import measured
 from bstool.compile.wiring import wiring as wiring_md
 from bstool.controllers import Controller, controller_hash, load_controller
 from bstool.errors import BstoolError, BuildError, InputError, SourceError
 from bstool.moduleid import ModuleId, parse_module
+from bstool.timingfile import TimingModel
 from bstool.tokenizer import Project, tokenize_source
 
 SLOT_BYTES = buildfile.SLOT_BYTES
@@ -60,6 +62,7 @@ def compile_controller(
     tokenize: bool = True,
     progress: bool = False,
     force: bool = False,
+    timing: TimingModel | str | os.PathLike[str] | None = None,
 ) -> BuildResult:
     """Compile ``controller`` into ``out_dir`` (replaced as a whole, never half-written).
 
@@ -81,6 +84,7 @@ def compile_controller(
         progress=progress,
         force=force,
         protect=inputs,
+        timing=timing,
     )
 
 
@@ -96,6 +100,32 @@ def compile_loaded(
     progress: bool = False,
     force: bool = False,
     protect: Sequence[str | os.PathLike[str]] = (),
+    timing: TimingModel | str | os.PathLike[str] | None = None,
+) -> BuildResult:
+    """Compile a loaded controller (see :func:`compile_controller`). ``timing``: a measured
+    timing model or its bstool.timing/1 file, for the timing estimates and the waits computed
+    from them (issue 13 §2; default: the estimate)."""
+    if timing is not None and not isinstance(timing, TimingModel):
+        timing = timingfile.load(timing)
+    with measured(timing):
+        return _compile_loaded(
+            ctrl, out_dir, source_name=source_name, calibration=calibration, period=period,
+            modules=modules, tokenize=tokenize, progress=progress, force=force, protect=protect,
+        )  # fmt: skip
+
+
+def _compile_loaded(
+    ctrl: Controller,
+    out_dir: str | os.PathLike[str],
+    *,
+    source_name: str,
+    calibration: str | os.PathLike[str] | None,
+    period: float | None,
+    modules: Sequence[str],
+    tokenize: bool,
+    progress: bool,
+    force: bool,
+    protect: Sequence[str | os.PathLike[str]],
 ) -> BuildResult:
     out = Path(out_dir)
     protect = (*protect, *((calibration,) if calibration is not None else ()))

@@ -14,6 +14,11 @@ give-up deadlines in order.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from bstool.timingfile import DEFAULT as DEFAULT_MODEL
+from bstool.timingfile import TimingModel
 from bstool.wire.link import (
     LINGER_LISTENS,
     LINGER_UNITS,
@@ -246,3 +251,40 @@ def slave_exchange_ms(pulse_max_ms: float, rx_payload: int, tx_payload: int) -> 
         + (1 + tx_payload) * byte_ms()
         + linger_ms()
     )
+
+
+# ---- issue 13 §2: a measured timing file (bstool.timingfile, bstool probe) ------------------
+_active = DEFAULT_MODEL
+_ESTIMATE = {"STMT_MS": STMT_MS, "HOLD_STMT_MS": HOLD_STMT_MS, "RUN_MS": RUN_MS,
+             "PULSOUT_UNIT_MS": PULSOUT_UNIT_MS, "SERIN_UNIT_MS": SERIN_UNIT_MS}  # fmt: skip
+
+
+def coefficients() -> TimingModel:
+    """The timing model the estimates use now: the default, or the one of :func:`measured`."""
+    return _active
+
+
+@contextmanager
+def measured(model: TimingModel | None) -> Iterator[None]:
+    """Estimate with ``model`` inside the block: statements (STMT_MS, HOLD_STMT_MS) × its
+    instruction time ratio, its RUN overhead, PULSOUT and SERIN-timeout units. Not thread-safe
+    (compile runs on one thread)."""
+    global _active, STMT_MS, HOLD_STMT_MS, RUN_MS, PULSOUT_UNIT_MS, SERIN_UNIT_MS
+    if model is None:
+        yield
+        return
+    r = model.instruction_time_ratio.value
+    _active = model
+    STMT_MS = _ESTIMATE["STMT_MS"] * r
+    HOLD_STMT_MS = _ESTIMATE["HOLD_STMT_MS"] * r
+    RUN_MS = model.run_us.value / 1000
+    PULSOUT_UNIT_MS = model.pulsout_unit_us.value / 1000
+    SERIN_UNIT_MS = model.serin_unit_ms.value
+    try:
+        yield
+    finally:
+        _active = DEFAULT_MODEL
+        STMT_MS, HOLD_STMT_MS, RUN_MS = (
+            _ESTIMATE[k] for k in ("STMT_MS", "HOLD_STMT_MS", "RUN_MS")
+        )
+        PULSOUT_UNIT_MS, SERIN_UNIT_MS = _ESTIMATE["PULSOUT_UNIT_MS"], _ESTIMATE["SERIN_UNIT_MS"]

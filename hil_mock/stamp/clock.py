@@ -43,8 +43,12 @@ def frame_received(tx_bit_ns: float, rx_bit_ns: float, tolerance: float = UART_T
     return abs(rx_bit_ns / tx_bit_ns - 1.0) <= tolerance
 
 
-@lru_cache(maxsize=256)
 def _instruction_table(speed: float) -> tuple[int, ...]:
+    return _table(speed, timing.BASE_NS, timing.PER_BIT_NS)  # issue 13 §2: the model in use
+
+
+@lru_cache(maxsize=256)
+def _table(speed: float, base_ns: int, per_bit_ns: int) -> tuple[int, ...]:
     """Statement cost by token bits (0..16384) at ``speed`` (shared by stamps of one speed)."""
     if speed == 1.0:
         return tuple(timing.instruction_ns(b) for b in range(CODE_BITS + 1))

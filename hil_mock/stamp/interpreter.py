@@ -19,7 +19,7 @@ from typing import Any
 from bstool.tokenizer import tokens as T
 
 from . import timing
-from .clock import NOMINAL, StampClock, frame_received
+from .clock import StampClock, frame_received
 from .codegen import TX_PC, WAIT_PC, Program, load_program
 from .errors import NotInTwin, StampFault
 from .memory import Memory, SlotStore, as_slot_store
@@ -101,7 +101,7 @@ class Stamp:
         self.event = False  # set when a serial byte went out (run_until returns)
         self.rx_missed = 0  # bytes offered while not listening on that pin (no receive buffer)
         self.rx_mismatched = 0  # bytes lost to a bit-time mismatch beyond the UART's tolerance
-        self.set_clock(clock or NOMINAL)
+        self.set_clock(clock or StampClock())  # issue 13 §2: the timing model in use
         self.reset()
 
     def set_clock(self, clock: StampClock) -> None:

@@ -37,3 +37,17 @@ def instruction_ns(bits: int) -> int:
 def byte_ns(mode: int) -> int:
     """Time of one serial byte (10 bit times) at a BS2sx baudmode."""
     return BITS_PER_BYTE * _NS_PER_CLOCK * ((mode & 0x0FFF) + T.BAUD_OFFSET)
+
+
+# ---- issue 13 §2: measured coefficients (a bstool.timing/1 file) replace the estimate ------
+ESTIMATE = (BASE_NS, PER_BIT_NS, RUN_NS, PAUSE_UNIT_NS, PULSOUT_UNIT_NS, SERIN_TIMEOUT_UNIT_NS)
+
+
+def use_model(
+    base_ns: int, per_bit_ns: int, run_ns: int, pause_ns: int, pulsout_ns: int, serin_ns: int
+) -> None:
+    """Make these the nominal coefficients of every clock made afterwards (hil_mock.measured;
+    ``use_model(*ESTIMATE)`` restores the estimate)."""
+    global BASE_NS, PER_BIT_NS, RUN_NS, PAUSE_UNIT_NS, PULSOUT_UNIT_NS, SERIN_TIMEOUT_UNIT_NS
+    BASE_NS, PER_BIT_NS, RUN_NS = base_ns, per_bit_ns, run_ns
+    PAUSE_UNIT_NS, PULSOUT_UNIT_NS, SERIN_TIMEOUT_UNIT_NS = pause_ns, pulsout_ns, serin_ns
