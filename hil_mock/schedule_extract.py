@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bstool.buildfile import Build
 from bstool.errors import InputError
@@ -25,8 +25,11 @@ from hil_mock.perturb import Perturbation
 from hil_mock.robot import RobotTwin
 from hil_mock.twin_result import NS, TwinResult
 
+if TYPE_CHECKING:
+    from bstool.sim.simulator import SimResult, Simulator
 
-class _Recorder(RobotTwin):
+
+class Recorder(RobotTwin):
     """A twin without physics that writes down the servo commands it would apply."""
 
     def __init__(self, build: Build, **kwargs: Any) -> None:
@@ -73,7 +76,7 @@ def extract_schedule(
     options the twin's physics run sees exactly these commands."""
     if transitions < 1:
         raise InputError(f"transitions must be >= 1, got {transitions}")
-    twin = _Recorder(
+    twin = Recorder(
         build,
         failed=failed,
         die=die,
@@ -98,3 +101,21 @@ def extract_schedule(
         events, samples=samples, actuator_count=build.legs * build.modules
     )
     return schedule, result
+
+
+def stamp_timed_simulator(build: Build) -> Simulator:
+    """The MuJoCo robot of ``build`` (the twin's own: same spec, same physics)."""
+    from bstool.robot import RobotSpec
+    from bstool.sim.simulator import Simulator
+
+    robot = build.manifest.robot
+    return Simulator(RobotSpec(legs=robot.legs, modules=robot.modules, states=robot.states))
+
+
+def simulate_build(
+    build: Build, transitions: int, **options: Any
+) -> tuple[SimResult, StampSchedule, TwinResult]:
+    """``bstool simulate --build``: the build's schedule (:func:`extract_schedule`, same
+    ``options``) played by the simulator; the path, the schedule and the twin's record."""
+    schedule, result = extract_schedule(build, transitions, **options)
+    return stamp_timed_simulator(build).run_schedule(schedule), schedule, result

@@ -193,3 +193,95 @@ def run_schedule(model: mujoco.MjModel, data: mujoco.MjData, schedule: StampSche
 def model_copy(model: mujoco.MjModel) -> mujoco.MjModel:
     """An independent copy (its own gains), for one worker thread."""
     return copy.deepcopy(model)
+
+
+@dataclass(frozen=True, eq=False)
+class ScheduleModel:
+    """When a build of one model, at one period, moves each servo, for any state sequence.
+
+    Fitted from a representative build's recorded schedule (``hil_mock.schedule_model``):
+    servo ``a`` is limp from power-up until ``drive[a]`` (s), then holds R^0; its target
+    becomes R^t at ``base[t] + offset[a]`` (t = 1..len(base)-1; later transitions follow at
+    ``period`` spacing), applied at the start of the ``grid`` chunk holding that instant, as
+    the twin does. The path is sampled when ``reference`` starts transition t + 1. What it
+    leaves out: the state-dependent part of the offsets (pulse widths and the waits computed
+    from them shift a module by a few ms either way, docs/twin.md) and the timing changes of
+    failed modules' neighbours."""
+
+    grid: float
+    drive: np.ndarray  # (A,) s
+    base: np.ndarray  # (T_fit + 1,) s; base[0] unused (0)
+    offset: np.ndarray  # (A,) s
+    period: float
+    reference: int
+    angles: np.ndarray  # (k,) rad per state
+
+    @property
+    def actuator_count(self) -> int:
+        return len(self.drive)
+
+    def instants(self, transitions: int) -> np.ndarray:
+        """(T + 2, A) seconds at which each servo starts transitions 0..T+1 (row 0: drive)."""
+        fitted = len(self.base) - 1
+        t = np.arange(1, transitions + 2)
+        last = self.base[fitted]
+        base = np.where(
+            t <= fitted, self.base[np.minimum(t, fitted)], last + (t - fitted) * self.period
+        )
+        out = np.empty((transitions + 2, self.actuator_count))
+        out[0] = self.drive
+        out[1:] = base[:, None] + self.offset[None, :]
+        return np.floor(out / self.grid + 1e-9) * self.grid
+
+    def schedule(self, states: np.ndarray) -> StampSchedule:
+        """The schedule of a (T+1, n, m) state sequence (what its build would do)."""
+        seq = np.asarray(states).reshape(len(states), -1)
+        if seq.shape[1] != self.actuator_count:
+            raise InputError(
+                f"states are for {seq.shape[1]} servos, the schedule model for "
+                f"{self.actuator_count}"
+            )
+        T = len(seq) - 1
+        when = self.instants(T)
+        count = self.actuator_count
+        changed = np.ones_like(seq, dtype=bool)
+        changed[1:] = seq[1:] != seq[:-1]
+        tt, aa = np.nonzero(changed)
+        times = np.concatenate([np.zeros(count), when[tt, aa]])
+        acts = np.concatenate([np.arange(count), aa])
+        angles = np.concatenate([np.full(count, np.nan), self.angles[seq[tt, aa]]])
+        order = np.argsort(times, kind="stable")
+        samples = when[1:, self.reference]
+        return StampSchedule(times[order], acts[order], angles[order], samples, count)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "format": MODEL_FORMAT,
+            "grid": self.grid,
+            "drive": self.drive.tolist(),
+            "base": self.base.tolist(),
+            "offset": self.offset.tolist(),
+            "period": self.period,
+            "reference": self.reference,
+            "angles": self.angles.tolist(),
+        }
+
+    @classmethod
+    def from_json(cls, obj: Any, where: str = "schedule model") -> ScheduleModel:
+        try:
+            if obj["format"] != MODEL_FORMAT:
+                raise InputError(f"{where}: format is {obj['format']!r}, not {MODEL_FORMAT}")
+            return cls(
+                float(obj["grid"]),
+                np.array(obj["drive"], float),
+                np.array(obj["base"], float),
+                np.array(obj["offset"], float),
+                float(obj["period"]),
+                int(obj["reference"]),
+                np.array(obj["angles"], float),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"{where}: not a {MODEL_FORMAT} object ({exc})") from None
+
+
+MODEL_FORMAT = "bstool.schedule-model/1"
