@@ -95,11 +95,16 @@ class Body:
             out.append((servo, servo.limp))
         return out
 
+    def _drive_hook(self, drive: list[tuple[ServoTrack, bool]]) -> None:
+        """Called with every chunk's drive before it is applied (``schedule_extract``)."""
+
     def _apply_servos(self) -> None:
+        drive = self._servo_drive()
+        self._drive_hook(drive)
         if self.sim is None:
             return
         model, data = self.sim.model, self.sim.data
-        for servo, limp in self._servo_drive():
+        for servo, limp in drive:
             a = servo.actuator
             if limp:
                 model.actuator_gainprm[a] = 0.0

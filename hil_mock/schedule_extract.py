@@ -21,6 +21,7 @@ from bstool.buildfile import Build
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from bstool.sim.timed import StampSchedule
+from hil_mock.body import ServoTrack
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import RobotTwin
 from hil_mock.twin_result import NS, TwinResult
@@ -30,18 +31,19 @@ if TYPE_CHECKING:
 
 
 class Recorder(RobotTwin):
-    """A twin without physics that writes down the servo commands it would apply."""
+    """A twin that writes down the servo commands it applies (``physics=False``: without
+    MuJoCo, the default here)."""
 
-    def __init__(self, build: Build, **kwargs: Any) -> None:
+    def __init__(self, build: Build, *, physics: bool = False, **kwargs: Any) -> None:
         self.events: list[tuple[float, int, float]] = []
         self.samples: list[float] = []
         self._applied: dict[int, float] = {}
         self._seen = 1  # the reference's first record is R^0, not a path point
-        super().__init__(build, physics=False, **kwargs)
+        super().__init__(build, physics=physics, **kwargs)
 
-    def _apply_servos(self) -> None:
+    def _drive_hook(self, drive: list[tuple[ServoTrack, bool]]) -> None:
         t = self.t_ns / NS
-        for servo, limp in self._servo_drive():
+        for servo, limp in drive:
             command = math.nan if limp else servo.target
             before = self._applied.get(servo.actuator)
             if before is None or not _same(before, command):
@@ -52,6 +54,21 @@ class Recorder(RobotTwin):
             while self._seen < n:
                 self.samples.append(t)
                 self._seen += 1
+
+    def schedule(self, transitions: int) -> StampSchedule:
+        """The recorded schedule up to path point ``transitions`` (the run must have reached
+        the reference's transition T + 1)."""
+        samples = self.samples[: transitions + 1]
+        if not samples:
+            raise InputError(
+                f"{self.build.root}: the twin made no transition, so there is no path",
+                hint="run `bstool twin` on the build to see which module stalled",
+            )
+        end = samples[-1]  # the playback needs nothing after the last sample
+        events = [e for e in self.events if e[0] <= end]
+        return StampSchedule.from_events(
+            events, samples=samples, actuator_count=self.build.legs * self.build.modules
+        )
 
 
 def _same(a: float, b: float) -> bool:
@@ -88,18 +105,7 @@ def extract_schedule(
     )
     # one more: path[T] is taken when the reference starts transition T + 1
     result = twin.run(transitions + 1, timeout_s=timeout_s)
-    samples = twin.samples[: transitions + 1]
-    if not samples:
-        raise InputError(
-            f"{build.root}: the twin made no transition, so there is no path to simulate",
-            hint="run `bstool twin` on the build to see which module stalled",
-        )
-    # the playback needs nothing after the last sample
-    end = samples[-1]
-    events = [e for e in twin.events if e[0] <= end]
-    schedule = StampSchedule.from_events(
-        events, samples=samples, actuator_count=build.legs * build.modules
-    )
+    schedule = twin.schedule(transitions)
     return schedule, result
 
 
