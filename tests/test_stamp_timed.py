@@ -192,8 +192,8 @@ def test_evolve_stamp_timed_needs_physics_and_a_model(cli, tmp_path: Path) -> No
 @pytest.mark.slow
 def test_evolve_stamp_timed_runs_and_resumes(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     out = tmp_path / "run"
-    run = cli("evolve", "nnsig", "--stamp-timed", "--pop", "2", "--gens", "1",
-              "--transitions", "2", "--seed", "3", "--workers", "1", "--out", str(out), "-q")  # fmt: skip
+    args = ["--pop", "2", "--gens", "1", "--transitions", "2", "--seed", "3", "--workers", "1"]
+    run = cli("evolve", "nnsig", "--stamp-timed", *args, "--out", str(out), "-q")
     assert run.code == 0, run.err
     best = fileio.read_json(out / "best.json")
     assert best["fitness"] > 0
