@@ -25,6 +25,7 @@ import argparse
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -95,6 +96,21 @@ def schedule_rate(schedules: object, seqs: np.ndarray, seconds: float = 1.0) -> 
     return count / (time.perf_counter() - start)
 
 
+def ga_rate_with(model: str, params: GAParams, factory: Any) -> tuple[float, Any]:
+    """Paid evaluations/s of a GA run with physics (offspring keep their parents' R^0 as
+    evolution's do); and the evaluator."""
+    evaluator = factory.build()
+    start = time.perf_counter()
+    state = run(new_run(Problem(model, transitions=params.transitions), params), evaluator)
+    rate = state.cache.evaluations / (time.perf_counter() - start)
+    evaluator.close()
+    return rate, evaluator
+
+
+def ga_rate(model: str, params: GAParams, factory: Any) -> float:
+    return ga_rate_with(model, params, factory)[0]
+
+
 def sequence_rate(model: str, pop: int, transitions: int, seconds: float = 1.0) -> float:
     problem = Problem(model, transitions=transitions)
     rng = np.random.default_rng(0)
@@ -116,6 +132,7 @@ def main() -> None:
     ap.add_argument("--transitions", type=int, default=30)
     ap.add_argument("--ga-gens", type=int, default=40)
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds, best kept")
+    ap.add_argument("--stamp-gens", type=int, default=4, help="GA generations, stamp-timed")
     args = ap.parse_args()
 
     problem = Problem("nnsin", transitions=args.transitions)
@@ -158,6 +175,24 @@ def main() -> None:
         print(
             f"{workers} worker(s): stamp-timed {timed:7.2f} evaluations/s   plain {plain:7.2f}/s"
             f"   ratio {timed / plain:.3f}"
+        )
+
+    for model in ("nnsin", "ca1d"):
+        params = GAParams(pop=args.pop, gens=args.stamp_gens, transitions=args.transitions, seed=2)
+        model_schedules = schedule_model(model)
+        timed_rate = plain_rate = 0.0
+        hits = ""
+        for _ in range(args.rounds):
+            plain_rate = max(plain_rate, ga_rate(model, params, PhysicsFitness(workers=1)))
+            factory = StampTimedFitness(model_schedules, workers=1)
+            rate, evaluator = ga_rate_with(model, params, factory)
+            timed_rate = max(timed_rate, rate)
+            cache = evaluator.runner.power_ups
+            hits = f"power-ups restored {cache.hits}/{cache.hits + cache.misses}"
+        print(
+            f"{model} GA ({args.stamp_gens} generations of {args.pop}, 1 worker): stamp-timed "
+            f"{timed_rate:.2f} evaluations/s, plain {plain_rate:.2f}/s, ratio "
+            f"{timed_rate / plain_rate:.3f} ({hits})"
         )
 
     for model in ("ca1d", "ca2dsing"):

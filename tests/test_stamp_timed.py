@@ -54,6 +54,24 @@ def test_limp_servos_restore_the_model() -> None:
     assert np.array_equal(sim.run_schedule(schedule).path, limp.path)
 
 
+def test_a_restored_power_up_continues_to_the_bit() -> None:
+    """Two candidates with one R^0: the second starts from the first's stored power-up."""
+    from bstool.sim.timed import PowerUpCache
+
+    k, a = 16, 30
+    model = ScheduleModel(0.01, np.full(a, 0.02), np.array([0.0, 0.6, 1.1]),
+                          np.linspace(-0.01, 0.01, a), 0.48, 0,
+                          np.asarray(state_to_angle(np.arange(k), k)))  # fmt: skip
+    one = _states("ca1d", 3)
+    two = one.copy()
+    two[1:] = (two[1:] + 5) % k  # same R^0, other transitions
+    sim, cache = Simulator(SPEC), PowerUpCache()
+    plain = [sim.run_schedule(model.schedule(s)).path for s in (one, two)]
+    cached = [sim.run_schedule(model.schedule(s), cache=cache).path for s in (one, two)]
+    assert cache.hits == 1 and cache.misses == 1
+    assert all(np.array_equal(p, c) for p, c in zip(plain, cached, strict=True))
+
+
 def test_schedule_json_round_trip_and_errors() -> None:
     events = [(0.0, 0, math.nan), (0.02, 0, 0.5), (0.02, 1, -0.5)]
     s = StampSchedule.from_events(events, samples=[0.02, 0.5], actuator_count=2)
@@ -103,7 +121,7 @@ def test_the_twin_moves_as_the_stamp_timed_simulator(
     model: str,
     which: str,
     builtin_build,
-    tmp_path: Path,  # type: ignore[no-untyped-def]
+    tmp_path: Path,
 ) -> None:
     """The build's schedule, extracted without physics, played by ``bstool simulate``'s
     simulator: the twin's path to the bit (target: 2 % of the distance, 5 mm per point)."""
@@ -120,6 +138,7 @@ def test_the_twin_moves_as_the_stamp_timed_simulator(
     assert np.max(np.linalg.norm(twin - timed.path, axis=1)) < 0.005
     assert abs(report.check.twin_distance - timed.distance) <= max(0.02 * timed.distance, 0.002)
     assert report.check.stamp_path_diff is not None and report.check.stamp_path_diff < 0.005
+    assert report.reference is not None
     assert seen.state_array(build.legs, build.modules, T).tolist() == report.reference.tolist()
 
 
@@ -156,7 +175,7 @@ def _copy_shipped(model: str, tmp: Path) -> Path:
 
 
 @pytest.mark.slow
-def test_simulate_build_and_twin_json_agree(cli, builtin_build) -> None:  # type: ignore[no-untyped-def]
+def test_simulate_build_and_twin_json_agree(cli, builtin_build) -> None:
     folder = builtin_build("nnsig")
     sim = cli("simulate", str(builtin_controller("nnsig")), "--build", str(folder), "-T", "2",
               "--json")  # fmt: skip
@@ -175,7 +194,7 @@ def test_simulate_build_and_twin_json_agree(cli, builtin_build) -> None:  # type
     assert video.code != 0 and "does not combine" in video.err
 
 
-def test_evolve_stamp_timed_needs_physics_and_a_model(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_evolve_stamp_timed_needs_physics_and_a_model(cli, tmp_path: Path) -> None:
     from bstool.evolve import driver
     from bstool.evolve.engine import GAParams
 
@@ -190,7 +209,7 @@ def test_evolve_stamp_timed_needs_physics_and_a_model(cli, tmp_path: Path) -> No
 
 
 @pytest.mark.slow
-def test_evolve_stamp_timed_runs_and_resumes(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_evolve_stamp_timed_runs_and_resumes(cli, tmp_path: Path) -> None:
     out = tmp_path / "run"
     args = ["--pop", "2", "--gens", "1", "--transitions", "2", "--seed", "3", "--workers", "1"]
     run = cli("evolve", "nnsig", "--stamp-timed", *args, "--out", str(out), "-q")

@@ -22,7 +22,7 @@ from bstool.errors import InputError
 from bstool.robot import RobotSpec
 from bstool.sim.simulator import SimResult, Simulator
 from bstool.sim.states import validate_states
-from bstool.sim.timed import StampSchedule, model_copy
+from bstool.sim.timed import PowerUpCache, StampSchedule, model_copy
 
 Method = Literal["threads", "rollout", "sequential"]
 DEFAULT_METHOD: Method = "threads"
@@ -65,6 +65,7 @@ class BatchEvaluator:
         ]
         self._pool: ThreadPoolExecutor | None = None
         self._models: list[mujoco.MjModel] = []  # per worker, for stamp-timed runs
+        self.power_ups = PowerUpCache()  # stamp-timed runs' power-ups, by their events
 
     # -- public ----------------------------------------------------------------------------
     def evaluate(
@@ -91,7 +92,8 @@ class BatchEvaluator:
         progress: Callable[[int], None] | None = None,
     ) -> list[SimResult]:
         """Stamp-timed runs (``Simulator.run_schedule``), one per schedule, in order; each
-        worker thread has its own model copy (a limp servo changes the model's gains)."""
+        worker thread has its own model copy (a limp servo changes the model's gains). A
+        power-up (``prefix_end``) simulated before is restored from :attr:`power_ups`."""
         if not schedules:
             return []
         if len(self._models) < len(self._datas):
@@ -100,7 +102,9 @@ class BatchEvaluator:
             ]
 
         def job(i: int, w: int) -> SimResult:
-            return self.sim.run_schedule(schedules[i], self._datas[w], model=self._models[w])
+            return self.sim.run_schedule(
+                schedules[i], self._datas[w], model=self._models[w], cache=self.power_ups
+            )
 
         if self.method == "sequential" or self.workers == 1 or len(schedules) == 1:
             out = []

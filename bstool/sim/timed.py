@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import math
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -36,6 +37,9 @@ class StampSchedule:
     angles: np.ndarray
     samples: np.ndarray
     actuator_count: int
+    prefix_end: float = 0.0
+    """Events before this instant are a power-up shared by every schedule with the same ones
+    (a :class:`PowerUpCache` key); 0: none. No path sample lies before it."""
 
     @classmethod
     def from_events(
@@ -142,12 +146,48 @@ class StampSchedule:
             ) from None
 
 
-def run_schedule(model: mujoco.MjModel, data: mujoco.MjData, schedule: StampSchedule) -> np.ndarray:
+class PowerUpCache:
+    """The physics state at the end of a schedule's power-up (``prefix_end``), by the power-up's
+    events: a candidate whose R^0 an earlier one had starts from there (evolution: offspring
+    mostly keep a parent's initial states). Restoring ``mjSTATE_INTEGRATION`` continues the run
+    to the bit. For one model; thread-safe; the oldest entries go beyond ``maxsize``."""
+
+    def __init__(self, maxsize: int = 2048) -> None:
+        self.maxsize = maxsize
+        self.table: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        self.hits = self.misses = 0
+        self._lock = threading.Lock()
+
+    def get(self, key: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+        with self._lock:
+            got = self.table.get(key)
+            if got is None:
+                self.misses += 1
+            else:
+                self.hits += 1
+            return got
+
+    def put(self, key: bytes, state: np.ndarray, limp: np.ndarray) -> None:
+        with self._lock:
+            self.table[key] = (state, limp)
+            while len(self.table) > self.maxsize:
+                del self.table[next(iter(self.table))]
+
+
+_INTEGRATION = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def run_schedule(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    schedule: StampSchedule,
+    cache: PowerUpCache | None = None,
+) -> np.ndarray:
     """Play ``schedule`` on ``model``/``data`` from a full reset; the (T+1, 2) disc path.
 
     ``model``'s actuator gains and biases are changed while a servo is limp and restored
     before returning: give each thread its own model (:func:`model_copy`) when running in
-    parallel."""
+    parallel. ``cache``: start from a stored power-up (same physics, fewer steps)."""
     if schedule.actuator_count != model.nu:
         raise InputError(
             f"stamp schedule is for {schedule.actuator_count} servos, the robot has {model.nu}",
@@ -161,14 +201,38 @@ def run_schedule(model: mujoco.MjModel, data: mujoco.MjData, schedule: StampSche
     bias = model.actuator_biasprm.copy()
     path = np.empty((len(smp_steps), 2))
     acts, angles = schedule.actuators, schedule.angles
+    limp = np.zeros(model.nu, dtype=bool)
     mujoco.mj_resetData(model, data)
     now = 0
     e = s = 0
+    split, key, stored = -1, b"", None
+    if cache is not None and schedule.prefix_end > 0:
+        split = int(np.rint(schedule.prefix_end / dt))
+        if len(smp_steps) and smp_steps[0] < split:
+            split = -1
+    if split > 0:
+        assert cache is not None
+        k = int(np.searchsorted(ev_steps, split))
+        key = b"".join((np.int64(split).tobytes(), ev_steps[:k].tobytes(),
+                        acts[:k].tobytes(), angles[:k].tobytes()))  # fmt: skip
+        stored = cache.get(key)
+        points = np.union1d(points, [split])
+        if stored is not None:
+            state, limp = stored[0], stored[1].copy()
+            mujoco.mj_setState(model, data, state, _INTEGRATION)
+            model.actuator_gainprm[limp] = 0.0
+            model.actuator_biasprm[limp] = 0.0
+            now, e = split, k
+            points = points[points >= split]
     try:
         for p in points.tolist():
             if p > now:
                 mujoco.mj_step(model, data, nstep=p - now)
                 now = p
+            if p == split and stored is None and cache is not None:  # the power-up's end
+                state = np.empty(mujoco.mj_stateSize(model, _INTEGRATION))
+                mujoco.mj_getState(model, data, state, _INTEGRATION)
+                cache.put(key, state, limp.copy())
             while s < len(smp_steps) and smp_steps[s] == p:
                 path[s] = data.qpos[0:2]
                 s += 1
@@ -179,10 +243,12 @@ def run_schedule(model: mujoco.MjModel, data: mujoco.MjData, schedule: StampSche
                 if math.isnan(x):
                     model.actuator_gainprm[a] = 0.0
                     model.actuator_biasprm[a] = 0.0
+                    limp[a] = True
                 else:
                     model.actuator_gainprm[a] = gain[a]
                     model.actuator_biasprm[a] = bias[a]
                     data.ctrl[a] = x
+                    limp[a] = False
                 e += 1
     finally:
         model.actuator_gainprm[:] = gain
@@ -252,7 +318,8 @@ class ScheduleModel:
         angles = np.concatenate([np.full(count, np.nan), self.angles[seq[tt, aa]]])
         order = np.argsort(times, kind="stable")
         samples = when[1:, self.reference]
-        return StampSchedule(times[order], acts[order], angles[order], samples, count)
+        first = float(when[1].min())  # no transition starts before: the rest is power-up
+        return StampSchedule(times[order], acts[order], angles[order], samples, count, first)
 
     def to_json(self) -> dict[str, Any]:
         return {
