@@ -326,8 +326,15 @@ def evolve(
     out: str | os.PathLike[str] | None = None,
     force: bool = False,
     on_generation: Callable[[Generation], None] | None = None,
+    stamp_timed: bool = False,
+    period: float | None = None,
+    schedule_model: ScheduleModel | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
+
+    ``stamp_timed=True`` (``--stamp-timed``, ``period`` = ``--period``) needs the
+    ``schedule_model`` of ``model`` at that period
+    (``hil_mock.schedule_model.schedule_model(model, period=period)``).
 
     ``None`` means the default (docs/evolution.md; a random seed is drawn and recorded).
     ``out`` is the run folder (best.json, history.csv, checkpoint after every generation); with
@@ -351,8 +358,17 @@ def evolve(
         parasite_k=parasite_k,
     )
     opt.check_workers(workers)
-    plan = plan_new(model, params, fitness=fitness, out=out, force=force)
-    return execute(plan, workers=workers, cluster=cluster, on_generation=on_generation)
+    plan = plan_new(
+        model, params, fitness=fitness, out=out, force=force, stamp_timed=stamp_timed,
+        period=period,
+    )  # fmt: skip
+    return execute(
+        plan,
+        workers=workers,
+        cluster=cluster,
+        on_generation=on_generation,
+        schedule_model=schedule_model,
+    )
 
 
 def resume(
@@ -362,10 +378,18 @@ def resume(
     workers: int | None = None,
     cluster: Any = None,
     on_generation: Callable[[Generation], None] | None = None,
+    schedule_model: ScheduleModel | None = None,
 ) -> EvolveResult:
     """Continue the run in folder ``out`` from its checkpoint (``gens`` may extend it); it
     reaches the same files as a run never interrupted. Raises ``InputError`` when ``out``
-    holds no run or ``gens`` is below what is done."""
+    holds no run or ``gens`` is below what is done. A stamp-timed run needs its
+    ``schedule_model`` again."""
     opt.check_workers(workers)
     plan = plan_resume(out, {"gens": gens})
-    return execute(plan, workers=workers, cluster=cluster, on_generation=on_generation)
+    return execute(
+        plan,
+        workers=workers,
+        cluster=cluster,
+        on_generation=on_generation,
+        schedule_model=schedule_model,
+    )
