@@ -9,7 +9,12 @@ Prints, for a population of --pop candidates (default 100) of the default robot:
 * the 2-worker speed-up over 1 worker;
 * the fraction of CA offspring whose physics was skipped (identical state sequence), from a
   GA run of --ga-gens generations on the toy fitness (selection dynamics only, no physics);
-* the state-sequence generation rate (population sequences/s) for a CA and an NN model.
+* the state-sequence generation rate (population sequences/s) for a CA and an NN model;
+* ``--stamp-timed`` evaluation (``bstool evolve --stamp-timed``): evaluations/s beside the plain
+  physics of the same population in the same rounds, their ratio, the seconds of physics each
+  run needs (the twin's roll call and 0.48 s period against a 0.475 s settle and period), the
+  schedule model's fitting time (one compile + twin run per representative, cached) and its
+  schedule computation rate (schedules/s).
 
 Usage: python bench/evaluate.py [--pop 100] [--transitions 30] [--ga-gens 40] [--rounds 2]
 """
@@ -20,12 +25,13 @@ import argparse
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from bstool.evolve.engine import GAParams, new_run, run
-from bstool.evolve.fitness import FitnessCache, PhysicsFitness, ToyEvaluator
+from bstool.evolve.fitness import FitnessCache, PhysicsFitness, StampTimedFitness, ToyEvaluator
 from bstool.evolve.problem import Problem
 from bstool.robot import RobotSpec
 from bstool.sim import Simulator
@@ -71,6 +77,40 @@ def stack_rate(problem: Problem, bits: np.ndarray, workers: int) -> float:
     return paid / (time.perf_counter() - start)
 
 
+def stamp_rate(problem: Problem, bits: np.ndarray, workers: int, schedules: object) -> float:
+    """Evaluations/s of the stamp-timed evaluator (schedule model → run_schedule)."""
+    evaluator = StampTimedFitness(schedules, problem.legs, problem.modules, workers).build()
+    evaluator([problem.sequences("main", bits[:1])[0]])  # warm the thread pool
+    start = time.perf_counter()
+    seqs = problem.sequences("main", bits)
+    _, _, paid = FitnessCache().evaluate(seqs, evaluator)
+    return paid / (time.perf_counter() - start)
+
+
+def schedule_rate(schedules: object, seqs: np.ndarray, seconds: float = 1.0) -> float:
+    count, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for s in seqs:
+            schedules.schedule(s)  # type: ignore[attr-defined]
+        count += len(seqs)
+    return count / (time.perf_counter() - start)
+
+
+def ga_rate_with(model: str, params: GAParams, factory: Any) -> tuple[float, Any]:
+    """Paid evaluations/s of a GA run with physics (offspring keep their parents' R^0 as
+    evolution's do); and the evaluator."""
+    evaluator = factory.build()
+    start = time.perf_counter()
+    state = run(new_run(Problem(model, transitions=params.transitions), params), evaluator)
+    rate = state.cache.evaluations / (time.perf_counter() - start)
+    evaluator.close()
+    return rate, evaluator
+
+
+def ga_rate(model: str, params: GAParams, factory: Any) -> float:
+    return ga_rate_with(model, params, factory)[0]
+
+
 def sequence_rate(model: str, pop: int, transitions: int, seconds: float = 1.0) -> float:
     problem = Problem(model, transitions=transitions)
     rng = np.random.default_rng(0)
@@ -92,6 +132,7 @@ def main() -> None:
     ap.add_argument("--transitions", type=int, default=30)
     ap.add_argument("--ga-gens", type=int, default=40)
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds, best kept")
+    ap.add_argument("--stamp-gens", type=int, default=4, help="GA generations, stamp-timed")
     args = ap.parse_args()
 
     problem = Problem("nnsin", transitions=args.transitions)
@@ -114,6 +155,45 @@ def main() -> None:
             f"ratio {ours / raw:.3f}   ({1e6 / (raw * steps / workers):.1f} µs per mj_step)"
         )
     print(f"2 workers / 1 worker: {rates[2] / rates[1]:.2f}x")
+
+    from hil_mock.schedule_model import schedule_model  # the bench may use the twin
+
+    start = time.perf_counter()
+    schedules = schedule_model("nnsin")
+    fit_s = time.perf_counter() - start
+    sample = schedules.schedule(seqs[0])
+    print(
+        f"stamp-timed (nnsin schedule model, fitted in {fit_s:.1f} s): "
+        f"{schedule_rate(schedules, seqs):.0f} schedules/s; physics per run "
+        f"{sample.duration:.2f} s vs plain {steps * sim.model.opt.timestep:.2f} s"
+    )
+    for workers in (1, 2):
+        plain = timed = 0.0
+        for _ in range(args.rounds):
+            plain = max(plain, stack_rate(problem, bits, workers))
+            timed = max(timed, stamp_rate(problem, bits, workers, schedules))
+        print(
+            f"{workers} worker(s): stamp-timed {timed:7.2f} evaluations/s   plain {plain:7.2f}/s"
+            f"   ratio {timed / plain:.3f}"
+        )
+
+    for model in ("nnsin", "ca1d"):
+        params = GAParams(pop=args.pop, gens=args.stamp_gens, transitions=args.transitions, seed=2)
+        model_schedules = schedule_model(model)
+        timed_rate = plain_rate = 0.0
+        hits = ""
+        for _ in range(args.rounds):
+            plain_rate = max(plain_rate, ga_rate(model, params, PhysicsFitness(workers=1)))
+            factory = StampTimedFitness(model_schedules, workers=1)
+            rate, evaluator = ga_rate_with(model, params, factory)
+            timed_rate = max(timed_rate, rate)
+            cache = evaluator.runner.power_ups
+            hits = f"power-ups restored {cache.hits}/{cache.hits + cache.misses}"
+        print(
+            f"{model} GA ({args.stamp_gens} generations of {args.pop}, 1 worker): stamp-timed "
+            f"{timed_rate:.2f} evaluations/s, plain {plain_rate:.2f}/s, ratio "
+            f"{timed_rate / plain_rate:.3f} ({hits})"
+        )
 
     for model in ("ca1d", "ca2dsing"):
         params = GAParams(pop=args.pop, gens=args.ga_gens, transitions=args.transitions, seed=1)

@@ -83,16 +83,30 @@ class Body:
         actuator = mid.leg * self.build.modules + mid.module
         return ServoTrack(actuator, servo_pin, widths[order], angles[order], float(angles[r0]))
 
+    def _servo_drive(self) -> list[tuple[ServoTrack, bool]]:
+        """Every servo with whether it is limp in the chunk starting now (no pulse for more
+        than :data:`LIMP_AFTER_S`; failed, dead or unpowered modules keep their own flag).
+        What :meth:`_apply_servos` applies, and what ``hil_mock.schedule_extract`` records."""
+        limp_after = int(LIMP_AFTER_S * NS)
+        out = []
+        for mid, servo in self.servos.items():
+            if mid in self.stamps:
+                servo.limp = self.t_ns - servo.last_pulse_ns > limp_after
+            out.append((servo, servo.limp))
+        return out
+
+    def _drive_hook(self, drive: list[tuple[ServoTrack, bool]]) -> None:
+        """Called with every chunk's drive before it is applied (``schedule_extract``)."""
+
     def _apply_servos(self) -> None:
+        drive = self._servo_drive()
+        self._drive_hook(drive)
         if self.sim is None:
             return
         model, data = self.sim.model, self.sim.data
-        limp_after = int(LIMP_AFTER_S * NS)
-        for mid, servo in self.servos.items():
+        for servo, limp in drive:
             a = servo.actuator
-            if mid in self.stamps:
-                servo.limp = self.t_ns - servo.last_pulse_ns > limp_after
-            if servo.limp:
+            if limp:
                 model.actuator_gainprm[a] = 0.0
                 model.actuator_biasprm[a] = 0.0
             else:

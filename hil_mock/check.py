@@ -33,6 +33,10 @@ class TwinCheck:
     stalled: list[ModuleId]
     announcements_ok: bool
     notes: list[str] = field(default_factory=list)
+    # the stamp-timed simulator (the twin's own schedule played by ``bstool simulate``'s
+    # physics, ``bstool simulate --build``): its distance and the largest path difference
+    stamp_distance: float | None = None
+    stamp_path_diff: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = dict(self.__dict__)
@@ -63,6 +67,8 @@ def check(
     reference: np.ndarray | None,
     transitions: int,
     sim_distance: float | None = None,
+    *,
+    stamp_path: np.ndarray | None = None,
 ) -> TwinCheck:
     """``reference``: the (T+1, n, m) states of ``bstool states`` (with the same failures)."""
     mismatched: list[ModuleId] = []
@@ -98,4 +104,20 @@ def check(
         servo_gap_estimate=max(estimates) if estimates else math.nan,
         stalled=list(result.stalled),
         announcements_ok=ok,
+        stamp_distance=_distance(stamp_path),
+        stamp_path_diff=_path_diff(stamp_path, result.path),
     )
+
+
+def _distance(path: np.ndarray | None) -> float | None:
+    if path is None or len(path) < 2:
+        return None
+    return float(np.hypot(*(path[-1] - path[0])))
+
+
+def _path_diff(a: np.ndarray | None, b: np.ndarray) -> float | None:
+    """The largest distance between matching points of two paths (metres)."""
+    if a is None or len(a) == 0 or len(b) == 0:
+        return None
+    k = min(len(a), len(b))
+    return float(np.max(np.linalg.norm(a[:k] - b[:k], axis=1)))

@@ -20,6 +20,7 @@ from bstool.moduleid import ModuleId
 from hil_mock.check import TwinCheck, check, reference_simulator
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import CHUNK_STEPS, RobotTwin
+from hil_mock.schedule_extract import Recorder, stamp_timed_simulator
 from hil_mock.twin_result import TwinResult
 
 
@@ -59,6 +60,11 @@ class TwinReport:
     perturbations: dict[str, object] = field(default_factory=dict)  # what was drawn (--json)
 
     @property
+    def stamp_distance(self) -> float | None:
+        """The stamp-timed simulator's distance (this run's own schedule, replayed)."""
+        return self.check.stamp_distance
+
+    @property
     def ok(self) -> bool:
         """States equal to the reference (trivially true without one)."""
         return self.reference is None or self.check.states_equal
@@ -89,7 +95,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
                 raise InputError(f"flashing the twins failed: {bad}")
             eeproms = dict(fleet.eeproms)
         flash_seconds = time.perf_counter() - t0
-        twin = RobotTwin(
+        twin = Recorder(
             build,
             eeproms=eeproms,
             failed=options.failed,
@@ -113,12 +119,16 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         else None
     )
     sim_distance = None
+    stamp_path = None
     if reference is not None and options.physics:
         sim_distance = reference_simulator(build).run(reference).distance
+        stamp_path = _stamp_timed_path(twin, options.transitions)
     limited: list[ModuleId] = []
     if reference is not None and ctrl is not None:
         reference, limited = _documented_limit(build, ctrl, reference, options)
-    report = check(build, result, reference, options.transitions, sim_distance)
+    report = check(
+        build, result, reference, options.transitions, sim_distance, stamp_path=stamp_path
+    )
     if limited:
         report.notes.append(
             "modules after two neighbouring dead NN modules ("
@@ -138,6 +148,16 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         twin_seconds,
         perturbations=twin.perturb.report(),
     )
+
+
+def _stamp_timed_path(twin: Recorder, transitions: int) -> np.ndarray | None:
+    """The path of the stamp-timed simulator: the commands this run applied, played again on a
+    fresh simulator (``bstool simulate --build``, without a second interpreter run)."""
+    try:
+        schedule = twin.schedule(transitions)
+    except InputError:  # no transition at all: no path
+        return None
+    return stamp_timed_simulator(twin.build).run_schedule(schedule).path
 
 
 def _run(twin: RobotTwin, options: TwinOptions) -> TwinResult:

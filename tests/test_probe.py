@@ -353,3 +353,19 @@ def test_an_in_process_twin_says_to_serve_one(cli: Callable[..., Any], tmp_path:
               "-o", str(tmp_path / "t.json"))  # fmt: skip
     assert run.code != 0 and "stopped sending after" in run.err
     assert "hil_mock serve --timing real" in run.err and "Traceback" not in run.err
+
+
+def test_stamp_timed_simulator_takes_the_file(
+    cli: Callable[..., Any], builtin_build: Callable[..., Path], tmp_path: Path
+) -> None:
+    """`simulate --build B --timing F`: the schedule comes from stamps timed by the file (slower
+    stamps: a longer measured period), and --timing without --build is refused."""
+    build = builtin_build("ca1d")
+    ctrl = str(build / "controller.json")
+    plain = cli("simulate", ctrl, "--build", str(build), "-T", "2", "--json", "-q")
+    slow = cli("simulate", ctrl, "--build", str(build), "-T", "2", "--json", "-q",
+               "--timing", str(_ratio_file(tmp_path, 1.8)))  # fmt: skip
+    assert plain.code == 0 and slow.code == 0, slow.err
+    assert json.loads(slow.out) != json.loads(plain.out)
+    run = cli("simulate", ctrl, "--timing", str(_ratio_file(tmp_path, 1.8)))
+    assert run.code == 2 and "--timing needs --build" in run.err

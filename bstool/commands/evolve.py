@@ -86,6 +86,17 @@ _D = opt.default
     help="physics (MuJoCo) or toy (a cheap stand-in to try the pipeline).",
 )
 @click.option(
+    "--stamp-timed",
+    is_flag=True,
+    help="Physics with each servo moved when a build's stamp would move it (the twin's timing,"
+    " from a build of a representative controller; docs/twin.md).",
+)
+@click.option(
+    "--period",
+    type=click.FloatRange(min=0, min_open=True),
+    help="--stamp-timed: the period the controller will be compiled with (default: compile's).",
+)
+@click.option(
     "--robust",
     type=click.Choice(ROBUST_MODES),
     is_flag=False,
@@ -136,14 +147,17 @@ def command(
             raise InputError("give either --out DIR (new run) or --resume DIR, not both")
         if force:
             raise InputError("--force only applies to a new run (--out DIR)")
+        given.pop("period", None)
         plan = plan_resume(resume, {**given, "model": model})
     else:
         model = opt.check_model(model)
         if out is None:
             raise InputError("missing --out DIR", hint="the run directory to write results to")
         fitness = given.pop("fitness", opt.default("fitness"))
+        stamp_timed = bool(given.pop("stamp_timed", False))
+        period = given.pop("period", None)
         plan = plan_new(model, opt.ga_params(model, **given), fitness=fitness, out=out,
-                        force=force)  # fmt: skip
+                        force=force, stamp_timed=stamp_timed, period=period)  # fmt: skip
     _run(plan, workers, cluster, quiet)
 
 
@@ -182,8 +196,20 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
         )
         bar.update(1)
 
+    schedule = None
+    if plan.stamp_timed:
+        from hil_mock.schedule_model import schedule_model
+
+        schedule = schedule_model(
+            state.problem.model,
+            period=plan.period,
+            legs=state.problem.legs,
+            modules=state.problem.modules,
+        )
     try:
-        result = execute(plan, workers=workers, cluster=cluster, on_generation=show)
+        result = execute(
+            plan, workers=workers, cluster=cluster, on_generation=show, schedule_model=schedule
+        )
     except EvolveInterrupted as exc:
         bar.close()
         click.echo(f"{exc} Continue with: {exc.resume_hint}", err=True)

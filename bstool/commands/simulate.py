@@ -62,6 +62,19 @@ class Source:
     default=None,
     help="Seconds of physics per transition (default: the servo's full-range time × 1.25).",
 )
+@click.option(
+    "--build",
+    "build_dir",
+    type=click.Path(file_okay=False),
+    help="Stamp-timed: move each servo when the build's program on its stamp does (the twin's"
+    " timing model, no physics there), with the twin's power-up and roll call.",
+)
+@click.option(
+    "--timing",
+    "timing_file",
+    type=click.Path(dir_okay=False),
+    help="With --build: a bstool.timing/1 file (bstool probe), the stamps' measured timing.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (metres).")
 @click.option(
     "--plot", type=click.Path(dir_okay=False), help="Write the disc path as a PNG (paper Fig. 18)."
@@ -94,6 +107,7 @@ def command(
     transitions: int | None,
     failed: tuple[str, ...],
     transition_time: float | None,
+    build_dir: str | None,
     as_json: bool,
     plot: str | None,
     video: str | None,
@@ -102,6 +116,7 @@ def command(
     model: str,
     example: bool,
     quiet: bool,
+    timing_file: str | None = None,
 ) -> None:
     """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
     print the disc's displacement and distance (paper eq. 6). Without either, run a shipped
@@ -109,6 +124,19 @@ def command(
     for what, path in (("plot", plot), ("video", video)):
         if path:
             outputs.check_file(path, what)  # before any simulation
+    if timing_file is not None and build_dir is None:
+        raise InputError(
+            "--timing needs --build", hint="the timing file times a build's stamps: add --build"
+        )
+    if build_dir is not None:
+        bad = [flag for flag, given in (("--states", states_file), ("--video", video),
+               ("--view", view), ("--transition-time", transition_time is not None),
+               ("--example", example)) if given]  # fmt: skip
+        if bad:
+            raise InputError(
+                f"--build does not combine with {', '.join(bad)}",
+                hint="--build plays the build's own timing; drop the other options",
+            )
     if video:
         from bstool.sim.gl import configure_headless_gl
 
@@ -118,12 +146,26 @@ def command(
 
         require_display()  # fail before simulating
 
+    if build_dir is not None:
+        from bstool.commands.simulate_build import load_matching
+
+        build, ctrl_path = load_matching(build_dir, controller)
+        controller = ctrl_path
     source = _load_source(controller, states_file, transitions, failed, model, example)
+    stamp: dict[str, Any] = {}
+    if build_dir is not None:
+        from bstool.commands.simulate_build import run_build
 
-    from bstool.sim.simulator import Simulator
+        result, stamp = run_build(
+            build, source.states, source.failed, quiet=quiet, timing_file=timing_file
+        )
+        timing = stamp["timing"]
+    else:
+        from bstool.sim.simulator import Simulator
 
-    sim = Simulator(source.spec, transition_time=transition_time)
-    result = _render(sim, source.states, video, quiet) if video else sim.run(source.states)
+        sim = Simulator(source.spec, transition_time=transition_time)
+        result = _render(sim, source.states, video, quiet) if video else sim.run(source.states)
+        timing = f"{sim.transition_time:g} s"
 
     if plot:
         from bstool.sim.plot import plot_paths
@@ -138,7 +180,8 @@ def command(
     out.update(
         {
             "transitions": result.transitions,
-            "transition_time": sim.transition_time,
+            "transition_time": None if build_dir else sim.transition_time,
+            **stamp,
             "source": source.label,
             "failed": [str(m) for m in source.failed],
             "seed": seed,
@@ -152,7 +195,7 @@ def command(
         failed_text = ", ".join(m.label for m in source.failed) or "none"
         click.echo(f"source:       {source.label}")
         click.echo(
-            f"run:          {result.transitions} transitions × {sim.transition_time:g} s,"
+            f"run:          {result.transitions} transitions × {timing},"
             f" failed modules: {failed_text}"
         )
         click.echo(f"displacement: dx = {dx:+.4f} m, dy = {dy:+.4f} m")

@@ -202,6 +202,8 @@ def _print(report: TwinCheck, result: TwinResult) -> None:
         click.echo(f"            modules that differ: {', '.join(map(str, report.mismatched))}")
     if len(result.path) > 1:
         line = f"distance:   twin {report.twin_distance * 100:.2f} cm"
+        if report.stamp_distance is not None:
+            line += f", stamp-timed simulator {report.stamp_distance * 100:.2f} cm"
         if report.sim_distance is not None:
             line += f", simulator {report.sim_distance * 100:.2f} cm"
         click.echo(line)

@@ -11,7 +11,7 @@ import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bstool import outputs
 from bstool.controllers import Controller
@@ -27,8 +27,17 @@ from bstool.evolve.checkpoint import (
     save_outputs,
 )
 from bstool.evolve.engine import GAParams, HistoryRow, RunState, new_run, run
-from bstool.evolve.fitness import Evaluator, EvaluatorFactory, PhysicsFitness, ToyFitness
+from bstool.evolve.fitness import (
+    Evaluator,
+    EvaluatorFactory,
+    PhysicsFitness,
+    StampTimedFitness,
+    ToyFitness,
+)
 from bstool.evolve.problem import Problem
+
+if TYPE_CHECKING:
+    from bstool.sim.timed import ScheduleModel
 
 #: what a fitness value is, per evaluator kind (the value itself: metres, or toy units)
 UNITS = {"physics": "m", "toy": "toy units"}
@@ -117,6 +126,17 @@ class Plan:
     def fitness(self) -> str:
         return str(self.extra.get("fitness", "physics"))
 
+    @property
+    def stamp_timed(self) -> bool:
+        """Candidates run stamp-timed (``--stamp-timed``: a ScheduleModel is needed)."""
+        return bool(self.extra.get("stamp_timed"))
+
+    @property
+    def period(self) -> float | None:
+        """``--period`` of a stamp-timed run (None: compile's default)."""
+        value = self.extra.get("period")
+        return None if value is None else float(value)
+
 
 def check_out(out: str | os.PathLike[str], *, force: bool = False) -> tuple[Path, bool]:
     """Check a new run's folder before any work; (path, must replace existing content).
@@ -150,11 +170,15 @@ def plan_new(
     fitness: str = "physics",
     out: str | os.PathLike[str] | None = None,
     force: bool = False,
+    stamp_timed: bool = False,
+    period: float | None = None,
 ) -> Plan:
     kind = opt.check_fitness(fitness)
+    extra: dict[str, Any] = {"fitness": kind}
+    extra.update(opt.stamp_timed_settings(kind, stamp_timed, period))
     directory, replace = (None, False) if out is None else check_out(out, force=force)
     problem = Problem(opt.check_model(model), transitions=params.transitions)
-    return Plan(new_run(problem, params), {"fitness": kind}, directory, True, replace)
+    return Plan(new_run(problem, params), extra, directory, True, replace)
 
 
 def plan_resume(directory: str | os.PathLike[str], given: Mapping[str, Any]) -> Plan:
@@ -169,9 +193,13 @@ def plan_resume(directory: str | os.PathLike[str], given: Mapping[str, Any]) -> 
     return Plan(state, extra, d, False, saved_step=state.step)
 
 
-def factory_for(kind: str, problem: Problem, workers: int) -> EvaluatorFactory:
+def factory_for(
+    kind: str, problem: Problem, workers: int, schedule_model: ScheduleModel | None = None
+) -> EvaluatorFactory:
     if kind == "toy":
         return ToyFitness()
+    if schedule_model is not None:
+        return StampTimedFitness(schedule_model, problem.legs, problem.modules, workers)
     return PhysicsFitness(legs=problem.legs, modules=problem.modules, workers=workers)
 
 
@@ -204,12 +232,25 @@ def execute(
     workers: int | None = None,
     cluster: Any = None,
     on_generation: Callable[[Generation], None] | None = None,
+    schedule_model: ScheduleModel | None = None,
 ) -> EvolveResult:
     """Run ``plan`` to its end. Physics uses ``workers`` threads (default: the usable CPUs;
-    1 per Dask thread with ``cluster``, an address or a ``dask.distributed.Client``)."""
+    1 per Dask thread with ``cluster``, an address or a ``dask.distributed.Client``).
+    A stamp-timed plan needs ``schedule_model`` (``hil_mock.schedule_model.schedule_model``
+    of the plan's model and period: ``bstool evolve --stamp-timed`` derives it)."""
     state = plan.state
     threads = opt.check_workers(workers) or (1 if cluster else usable_cpus())
-    factory = factory_for(plan.fitness, state.problem, threads)
+    if plan.stamp_timed and schedule_model is None:
+        raise InputError(
+            "this run is stamp-timed but no schedule model was given",
+            hint="run it with `bstool evolve --stamp-timed`, or pass schedule_model="
+            "hil_mock.schedule_model.schedule_model(model, period=...)",
+        )
+    factory = (
+        factory_for(plan.fitness, state.problem, threads, schedule_model)
+        if plan.stamp_timed
+        else factory_for(plan.fitness, state.problem, threads)
+    )
     evaluator: Evaluator
     if cluster:
         from bstool.evolve.cluster import DaskEvaluator
@@ -285,8 +326,15 @@ def evolve(
     out: str | os.PathLike[str] | None = None,
     force: bool = False,
     on_generation: Callable[[Generation], None] | None = None,
+    stamp_timed: bool = False,
+    period: float | None = None,
+    schedule_model: ScheduleModel | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
+
+    ``stamp_timed=True`` (``--stamp-timed``, ``period`` = ``--period``) needs the
+    ``schedule_model`` of ``model`` at that period
+    (``hil_mock.schedule_model.schedule_model(model, period=period)``).
 
     ``None`` means the default (docs/evolution.md; a random seed is drawn and recorded).
     ``out`` is the run folder (best.json, history.csv, checkpoint after every generation); with
@@ -310,8 +358,17 @@ def evolve(
         parasite_k=parasite_k,
     )
     opt.check_workers(workers)
-    plan = plan_new(model, params, fitness=fitness, out=out, force=force)
-    return execute(plan, workers=workers, cluster=cluster, on_generation=on_generation)
+    plan = plan_new(
+        model, params, fitness=fitness, out=out, force=force, stamp_timed=stamp_timed,
+        period=period,
+    )  # fmt: skip
+    return execute(
+        plan,
+        workers=workers,
+        cluster=cluster,
+        on_generation=on_generation,
+        schedule_model=schedule_model,
+    )
 
 
 def resume(
@@ -321,10 +378,18 @@ def resume(
     workers: int | None = None,
     cluster: Any = None,
     on_generation: Callable[[Generation], None] | None = None,
+    schedule_model: ScheduleModel | None = None,
 ) -> EvolveResult:
     """Continue the run in folder ``out`` from its checkpoint (``gens`` may extend it); it
     reaches the same files as a run never interrupted. Raises ``InputError`` when ``out``
-    holds no run or ``gens`` is below what is done."""
+    holds no run or ``gens`` is below what is done. A stamp-timed run needs its
+    ``schedule_model`` again."""
     opt.check_workers(workers)
     plan = plan_resume(out, {"gens": gens})
-    return execute(plan, workers=workers, cluster=cluster, on_generation=on_generation)
+    return execute(
+        plan,
+        workers=workers,
+        cluster=cluster,
+        on_generation=on_generation,
+        schedule_model=schedule_model,
+    )

@@ -128,6 +128,28 @@ class PhysicsFitness:
         return PhysicsEvaluator(batch.BatchEvaluator(spec, workers=self.workers))
 
 
+@dataclass(frozen=True, eq=False)
+class StampTimedFitness:
+    """Factory of the stamp-timed MuJoCo evaluator (``bstool evolve --stamp-timed``): each
+    candidate's state sequence becomes the schedule a build of it would follow
+    (``schedule_model``, a :class:`bstool.sim.timed.ScheduleModel`), played with
+    ``BatchEvaluator.evaluate_schedules``; fitness = distance of eq. 6 between the path's
+    first and last samples."""
+
+    schedule_model: Any
+    legs: int = 5
+    modules: int = 6
+    workers: int = 1
+
+    def build(self) -> Evaluator:
+        from bstool.robot import RobotSpec
+        from bstool.sim import batch
+
+        spec = RobotSpec(legs=self.legs, modules=self.modules)
+        return StampTimedEvaluator(batch.BatchEvaluator(spec, workers=self.workers),
+                                   self.schedule_model)  # fmt: skip
+
+
 class _Stop(Exception):
     """Raised in a worker thread's progress callback to end its batch early."""
 
@@ -155,3 +177,21 @@ class PhysicsEvaluator:
 
     def close(self) -> None:
         self.runner.close()
+
+
+class StampTimedEvaluator(PhysicsEvaluator):
+    """Distances of the stamp-timed runs of the sequences (see :class:`StampTimedFitness`)."""
+
+    def __init__(self, runner: Any, schedule_model: Any) -> None:
+        super().__init__(runner)
+        self.schedule_model = schedule_model
+
+    def __call__(self, sequences: Sequence[np.ndarray]) -> list[float]:
+        self._stop.clear()
+        schedules = [self.schedule_model.schedule(s) for s in sequences]
+        try:
+            results = self.runner.evaluate_schedules(schedules, progress=self._progress)
+        except KeyboardInterrupt:
+            self._stop.set()
+            raise
+        return [float(r.distance) for r in results]

@@ -41,6 +41,7 @@ FIXED_ON_RESUME = (
     "coevolve_faults",
     "parasites",
     "parasite_k",
+    "stamp_timed",
 )
 
 
@@ -165,6 +166,24 @@ def ga_params(
         parasites=_int("parasites", pick("parasites", parasites), 2) if coevolve_faults else 0,
         parasite_k=parasite_range(pick("parasite_k", parasite_k)),
     )
+
+
+def stamp_timed_settings(kind: str, stamp_timed: bool, period: Any) -> dict[str, Any]:
+    """What a run saves for ``--stamp-timed`` / ``--period`` (nothing without them)."""
+    if not stamp_timed:
+        if period is not None:
+            raise InputError("--period only applies with --stamp-timed", hint="add --stamp-timed")
+        return {}
+    if kind != "physics":
+        raise InputError(
+            f"--stamp-timed needs physics fitness, not --fitness {kind}",
+            hint="drop --fitness toy",
+        )
+    if period is not None and (
+        isinstance(period, bool) or not isinstance(period, int | float) or not period > 0
+    ):
+        raise InputError(f"--period must be a positive number of seconds, got {period!r}")
+    return {"stamp_timed": True, "period": None if period is None else float(period)}
 
 
 def check_workers(workers: Any) -> int | None:

@@ -22,6 +22,7 @@ from bstool.errors import InputError
 from bstool.robot import RobotSpec
 from bstool.sim.simulator import SimResult, Simulator
 from bstool.sim.states import validate_states
+from bstool.sim.timed import PowerUpCache, StampSchedule, model_copy
 
 Method = Literal["threads", "rollout", "sequential"]
 DEFAULT_METHOD: Method = "threads"
@@ -63,6 +64,8 @@ class BatchEvaluator:
             mujoco.MjData(self.sim.model) for _ in range(self.workers - 1)
         ]
         self._pool: ThreadPoolExecutor | None = None
+        self._models: list[mujoco.MjModel] = []  # per worker, for stamp-timed runs
+        self.power_ups = PowerUpCache()  # stamp-timed runs' power-ups, by their events
 
     # -- public ----------------------------------------------------------------------------
     def evaluate(
@@ -82,6 +85,35 @@ class BatchEvaluator:
         if self.method == "threads":
             return self._threads(arrays, progress)
         return self._rollout(arrays, progress)
+
+    def evaluate_schedules(
+        self,
+        schedules: Sequence[StampSchedule],
+        progress: Callable[[int], None] | None = None,
+    ) -> list[SimResult]:
+        """Stamp-timed runs (``Simulator.run_schedule``), one per schedule, in order; each
+        worker thread has its own model copy (a limp servo changes the model's gains). A
+        power-up (``prefix_end``) simulated before is restored from :attr:`power_ups`."""
+        if not schedules:
+            return []
+        if len(self._models) < len(self._datas):
+            self._models = [self.sim.model] + [
+                model_copy(self.sim.model) for _ in range(len(self._datas) - 1)
+            ]
+
+        def job(i: int, w: int) -> SimResult:
+            return self.sim.run_schedule(
+                schedules[i], self._datas[w], model=self._models[w], cache=self.power_ups
+            )
+
+        if self.method == "sequential" or self.workers == 1 or len(schedules) == 1:
+            out = []
+            for i in range(len(schedules)):
+                out.append(job(i, 0))
+                if progress:
+                    progress(1)
+            return out
+        return self._threads_jobs(len(schedules), job, progress)
 
     def close(self) -> None:
         if self._pool is not None:
@@ -108,30 +140,42 @@ class BatchEvaluator:
     def _threads(
         self, arrays: list[np.ndarray], progress: Callable[[int], None] | None
     ) -> list[SimResult]:
+        def job(i: int, w: int) -> SimResult:
+            return self.sim.run_validated(arrays[i], self._datas[w])
+
+        return self._threads_jobs(len(arrays), job, progress)
+
+    def _threads_jobs(
+        self,
+        count: int,
+        job: Callable[[int, int], SimResult],
+        progress: Callable[[int], None] | None,
+    ) -> list[SimResult]:
+        """``job(i, worker)`` for i in 0..count-1 on the worker threads, in order."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="bstool-sim")
-        results: list[SimResult | None] = [None] * len(arrays)
+        results: list[SimResult | None] = [None] * count
         lock = threading.Lock()
         next_index = [0]
         stop = threading.Event()  # one worker failed (or progress raised): the others stop too
 
-        def worker(data: mujoco.MjData) -> None:
+        def worker(w: int) -> None:
             try:
                 while not stop.is_set():
                     with lock:
                         i = next_index[0]
                         next_index[0] += 1
-                    if i >= len(arrays):
+                    if i >= count:
                         return
-                    results[i] = self.sim.run_validated(arrays[i], data)
+                    results[i] = job(i, w)
                     if progress:
                         progress(1)
             except BaseException:
                 stop.set()
                 raise
 
-        n = min(self.workers, len(arrays))
-        futures = [self._pool.submit(worker, self._datas[w]) for w in range(n)]
+        n = min(self.workers, count)
+        futures = [self._pool.submit(worker, w) for w in range(n)]
         wait(futures)  # never return while a worker still uses its MjData
         for f in futures:
             f.result()  # re-raise the first failure

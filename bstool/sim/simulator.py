@@ -20,6 +20,7 @@ import numpy as np
 from bstool.errors import InputError
 from bstool.robot import RobotSpec, build_model, state_to_angle
 from bstool.sim.states import validate_states
+from bstool.sim.timed import PowerUpCache, StampSchedule, run_schedule
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,6 +110,23 @@ class Simulator:
             step(self.steps_per_transition)
             path[t] = data.qpos[self._xy]
         return SimResult(path)
+
+    def run_schedule(
+        self,
+        schedule: StampSchedule,
+        data: mujoco.MjData | None = None,
+        *,
+        model: mujoco.MjModel | None = None,
+        cache: PowerUpCache | None = None,
+    ) -> SimResult:
+        """Play timed servo commands (``bstool.sim.timed``: each module's targets at the
+        instants its stamp sets them) instead of states; the path at the schedule's samples.
+        ``model``/``data``: a worker thread's own (the model's gains change while limp);
+        ``cache``: power-ups already simulated (the same path, fewer steps)."""
+        return SimResult(
+            run_schedule(self.model if model is None else model,
+                         self.data if data is None else data, schedule, cache)
+        )  # fmt: skip
 
     def reset(self, data: mujoco.MjData) -> None:
         """Back to the model's initial state: time, qpos, qvel, warm start, ctrl all cleared."""

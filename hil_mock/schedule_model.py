@@ -1,0 +1,132 @@
+"""A schedule model for evolution: one representative build per (model, period), fitted once.
+
+Evolution cannot compile and run every candidate on the twin, so :func:`schedule_model`
+compiles random controllers of the model (fixed seeds) with the build's own templates,
+records on the twin without physics when each module's servo starts each transition
+(:class:`hil_mock.schedule_extract.Recorder`, the same record ``bstool twin`` keeps), and fits
+a :class:`bstool.sim.timed.ScheduleModel`: each module's power-up drive instant, the mean
+instant of every transition, each module's mean offset from it and the mean period.
+Applied to any candidate's state sequence it gives that candidate's stamp-timed schedule in
+microseconds. Cached in memory per (model, period, robot, transitions, representatives,
+bstool version, templates hash).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from bstool import __version__, buildfile, fileio
+from bstool.compile import compile_controller, templates_dir
+from bstool.controllers import Controller
+from bstool.errors import BuildError
+from bstool.evolve.problem import Problem
+from bstool.robot import state_to_angle
+from bstool.sim.timed import ScheduleModel
+from hil_mock.schedule import CHUNK_STEPS
+from hil_mock.schedule_extract import Recorder
+from hil_mock.twin_result import NS
+
+#: transitions recorded per representative (MAX_TRANS: what evolution runs)
+FIT_TRANSITIONS = 30
+#: random controllers averaged per model (each costs one compile and one twin run)
+REPRESENTATIVES = 2
+
+
+def random_controller(model: str, seed: int, *, legs: int = 5, modules: int = 6) -> Controller:
+    """A controller of ``model`` from random chromosome bits (``seed``)."""
+    problem = Problem(model, legs=legs, modules=modules)
+    rng = np.random.default_rng([13, seed])
+    if model == "ca2ddiff":
+        leg = rng.integers(0, 2, problem.length("leg"), dtype=np.uint8)
+        control = rng.integers(0, 2, problem.length("control"), dtype=np.uint8)
+        return problem.controller("leg", leg, control)
+    return problem.controller("main", rng.integers(0, 2, problem.length("main"), dtype=np.uint8))
+
+
+def templates_hash() -> str:
+    """sha256 over the template files (names and bytes): a new protocol is a new key."""
+    h = hashlib.sha256()
+    root = Path(templates_dir())
+    for path in sorted(root.rglob("*")):
+        if path.is_file():
+            h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
+
+
+def transition_instants(build: buildfile.Build, transitions: int) -> tuple[np.ndarray, int]:
+    """(A, T + 2) seconds: each module's first servo pulse (column 0) and the first pulse of
+    each transition 1..T+1, recorded on the twin without physics; and the reference actuator."""
+    twin = Recorder(build)
+    twin.run(transitions + 1)
+    rows = []
+    for mid in twin.order:
+        times = twin.records[mid].times_ns[: transitions + 2]
+        if len(times) < transitions + 2:
+            raise BuildError(
+                f"{build.root}: module {mid} stalled on the twin after {len(times) - 1} "
+                "transitions, so its schedule cannot be measured",
+                hint="run `bstool twin` on a build of this model to see why",
+            )
+        rows.append(np.array(times, dtype=float) / NS)
+    ref = twin.reference
+    assert ref is not None
+    return np.stack(rows), ref.leg * build.modules + ref.module
+
+
+def fit(instants: list[np.ndarray], reference: int, states: int) -> ScheduleModel:
+    """Average the instants of several builds (same model, period and robot)."""
+    c = np.mean(np.stack(instants), axis=0)  # (A, T + 2)
+    base = np.zeros(c.shape[1] - 1)
+    base[1:] = c[:, 1:-1].mean(axis=0)
+    offset = np.mean([(x[:, 1:-1] - x[:, 1:-1].mean(axis=0)).mean(axis=1) for x in instants], 0)
+    diffs = np.diff(base[1:])
+    period = float(diffs[1:].mean() if len(diffs) > 1 else diffs.mean() if len(diffs) else 0)
+    grid = CHUNK_STEPS * 0.002  # the twin's chunk at MuJoCo's 2 ms step
+    angles = state_to_angle(np.arange(states), states)
+    return ScheduleModel(grid, c[:, 0], base, offset, period, reference, np.asarray(angles))
+
+
+@functools.lru_cache(maxsize=16)
+def _cached(
+    model: str,
+    period: float | None,
+    legs: int,
+    modules: int,
+    transitions: int,
+    representatives: int,
+    key: str,
+) -> ScheduleModel:
+    instants = []
+    reference = 0
+    states = 16
+    with tempfile.TemporaryDirectory(prefix="bstool-schedule-") as tmp:
+        for seed in range(representatives):
+            ctrl = random_controller(model, seed, legs=legs, modules=modules)
+            states = ctrl.k
+            src = Path(tmp) / f"c{seed}.json"
+            fileio.write_json(src, ctrl.to_json())
+            out = Path(tmp) / f"b{seed}"
+            compile_controller(src, out, period=period)
+            c, reference = transition_instants(buildfile.load(out), transitions)
+            instants.append(c)
+    return fit(instants, reference, states)
+
+
+def schedule_model(
+    model: str,
+    *,
+    period: float | None = None,
+    legs: int = 5,
+    modules: int = 6,
+    transitions: int = FIT_TRANSITIONS,
+    representatives: int = REPRESENTATIVES,
+) -> ScheduleModel:
+    """The fitted schedule model of ``model`` at ``period`` (None: compile's default); about
+    a second per representative the first time, then from the cache."""
+    key = f"{__version__}:{templates_hash()}"
+    return _cached(model, period, legs, modules, transitions, representatives, key)

@@ -1,0 +1,220 @@
+"""Stamp-timed simulation (issue 13 §1): the robot moved when its stamps move it.
+
+The playback (``bstool.sim.timed``) against the plain simulator, the twin against the
+stamp-timed simulator for a shipped and a random controller of every model (few transitions),
+the schedule model against a real build's schedule, and the commands.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bstool import buildfile, fileio
+from bstool.builtin import MODELS, builtin_controller
+from bstool.compile import compile_controller
+from bstool.controllers import load_controller
+from bstool.errors import InputError
+from bstool.robot import RobotSpec, state_to_angle
+from bstool.sim.simulator import Simulator
+from bstool.sim.timed import ScheduleModel, StampSchedule
+
+SPEC = RobotSpec()
+
+
+def _states(model: str, transitions: int) -> np.ndarray:
+    return load_controller(builtin_controller(model)).states(transitions)
+
+
+def test_a_schedule_at_the_transition_boundaries_is_the_plain_run() -> None:
+    """All 30 targets at t = settle + (t-1)·transition: the plain simulator, to the bit."""
+    sim = Simulator(SPEC)
+    states = _states("ca1d", 3)
+    dt = sim.model.opt.timestep
+    settle, step = sim.settle_steps * dt, sim.steps_per_transition * dt
+    angles = sim.angles(states)
+    events = [(0.0 if t == 0 else settle + (t - 1) * step, a, float(angles[t, a]))
+              for t in range(len(states)) for a in range(angles.shape[1])]  # fmt: skip
+    samples = [settle + t * step for t in range(len(states))]
+    schedule = StampSchedule.from_events(events, samples=samples, actuator_count=30)
+    assert np.array_equal(sim.run_schedule(schedule).path, sim.run(states).path)
+
+
+def test_limp_servos_restore_the_model() -> None:
+    sim = Simulator(SPEC)
+    gain = sim.model.actuator_gainprm.copy()
+    events = [(0.0, a, math.nan) for a in range(30)] + [(0.1, 3, 0.2)]
+    schedule = StampSchedule.from_events(events, samples=[0.2, 0.3], actuator_count=30)
+    limp = sim.run_schedule(schedule)
+    assert np.array_equal(sim.model.actuator_gainprm, gain)
+    assert np.array_equal(sim.run_schedule(schedule).path, limp.path)
+
+
+def test_a_restored_power_up_continues_to_the_bit() -> None:
+    """Two candidates with one R^0: the second starts from the first's stored power-up."""
+    from bstool.sim.timed import PowerUpCache
+
+    k, a = 16, 30
+    model = ScheduleModel(0.01, np.full(a, 0.02), np.array([0.0, 0.6, 1.1]),
+                          np.linspace(-0.01, 0.01, a), 0.48, 0,
+                          np.asarray(state_to_angle(np.arange(k), k)))  # fmt: skip
+    one = _states("ca1d", 3)
+    two = one.copy()
+    two[1:] = (two[1:] + 5) % k  # same R^0, other transitions
+    sim, cache = Simulator(SPEC), PowerUpCache()
+    plain = [sim.run_schedule(model.schedule(s)).path for s in (one, two)]
+    cached = [sim.run_schedule(model.schedule(s), cache=cache).path for s in (one, two)]
+    assert cache.hits == 1 and cache.misses == 1
+    assert all(np.array_equal(p, c) for p, c in zip(plain, cached, strict=True))
+
+
+def test_schedule_json_round_trip_and_errors() -> None:
+    events = [(0.0, 0, math.nan), (0.02, 0, 0.5), (0.02, 1, -0.5)]
+    s = StampSchedule.from_events(events, samples=[0.02, 0.5], actuator_count=2)
+    back = StampSchedule.from_json(json.loads(json.dumps(s.to_json())))
+    assert back.events(0)[1] == (0.02, 0.5) and math.isnan(back.events(0)[0][1])
+    assert list(back.change_times(0)) == [0.02]
+    with pytest.raises(InputError):
+        StampSchedule.from_events(events, samples=[], actuator_count=2)
+    with pytest.raises(InputError):
+        StampSchedule.from_events(events, samples=[0.1], actuator_count=1)
+    with pytest.raises(InputError):
+        StampSchedule.from_json({"format": "x"})
+    with pytest.raises(InputError, match="servos"):
+        Simulator(SPEC).run_schedule(s)
+
+
+def test_schedule_model_places_changes_on_the_grid() -> None:
+    k, a = 16, 30
+    model = ScheduleModel(0.01, np.full(a, 0.025), np.array([0.0, 2.0, 2.5]),
+                          np.linspace(-0.01, 0.01, a), 0.48, 0,
+                          np.asarray(state_to_angle(np.arange(k), k)))  # fmt: skip
+    states = _states("nnsin", 4)
+    s = model.schedule(states)
+    assert np.allclose(s.times / 0.01, np.round(s.times / 0.01))
+    assert s.transitions == 4 and s.samples[0] == pytest.approx(1.99)
+    assert s.samples[-1] == pytest.approx(math.floor((2.5 + 3 * 0.48 - 0.01) / 0.01) / 100)
+    back = ScheduleModel.from_json(json.loads(json.dumps(model.to_json())))
+    assert np.array_equal(back.schedule(states).times, s.times)
+
+
+# ---- against the twin ----------------------------------------------------------------------
+
+
+def _random_build(model: str, seed: int, tmp: Path) -> Path:
+    from hil_mock.schedule_model import random_controller
+
+    src = tmp / f"{model}-{seed}.json"
+    fileio.write_json(src, random_controller(model, seed).to_json())
+    compile_controller(src, tmp / f"{model}-{seed}")
+    return tmp / f"{model}-{seed}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("which", ["shipped", "random"])
+def test_the_twin_moves_as_the_stamp_timed_simulator(
+    model: str,
+    which: str,
+    builtin_build,
+    tmp_path: Path,
+) -> None:
+    """The build's schedule, extracted without physics, played by ``bstool simulate``'s
+    simulator: the twin's path to the bit (target: 2 % of the distance, 5 mm per point)."""
+    from hil_mock.schedule_extract import simulate_build
+    from hil_mock.session import TwinOptions, run_twin
+
+    folder = builtin_build(model) if which == "shipped" else _random_build(model, 9, tmp_path)
+    build = buildfile.load(folder)
+    T = 3
+    report = run_twin(build, TwinOptions(transitions=T))
+    timed, _, seen = simulate_build(build, T)
+    twin = report.result.path
+    assert len(twin) == len(timed.path) == T + 1
+    assert np.max(np.linalg.norm(twin - timed.path, axis=1)) < 0.005
+    assert abs(report.check.twin_distance - timed.distance) <= max(0.02 * timed.distance, 0.002)
+    assert report.check.stamp_path_diff is not None and report.check.stamp_path_diff < 0.005
+    assert report.reference is not None
+    assert seen.state_array(build.legs, build.modules, T).tolist() == report.reference.tolist()
+
+
+@pytest.mark.slow
+def test_schedule_model_follows_a_real_build(tmp_path: Path) -> None:
+    """A random controller (not a representative): the fitted model's instants against its
+    build's, and the model-timed distance of a shipped controller against the build-timed."""
+    from hil_mock.schedule_extract import simulate_build
+    from hil_mock.schedule_model import schedule_model, transition_instants
+
+    model = "ca1d"
+    fitted = schedule_model(model)
+    T = 10
+    build = buildfile.load(_random_build(model, 9, tmp_path))
+    real, _ = transition_instants(build, T)
+    want = fitted.instants(T).T  # (A, T + 2), on the grid
+    err = real[:, 1 : T + 1] - want[:, 1 : T + 1]
+    assert np.mean(np.abs(err)) < 0.015 and np.max(np.abs(err)) < 0.06
+    assert np.max(np.abs(real[:, 0] - want[:, 0])) <= 0.01  # power-up drive
+
+    shipped = buildfile.load(_copy_shipped(model, tmp_path))
+    by_build, _, _ = simulate_build(shipped, T)
+    by_model = Simulator(SPEC).run_schedule(fitted.schedule(_states(model, T)))
+    assert abs(by_model.distance - by_build.distance) < 0.1 * by_build.distance
+    assert np.max(np.linalg.norm(by_model.path - by_build.path, axis=1)) < 0.03
+
+
+def _copy_shipped(model: str, tmp: Path) -> Path:
+    compile_controller(builtin_controller(model), tmp / f"shipped-{model}")
+    return tmp / f"shipped-{model}"
+
+
+# ---- commands ------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_simulate_build_and_twin_json_agree(cli, builtin_build) -> None:
+    folder = builtin_build("nnsig")
+    sim = cli("simulate", str(builtin_controller("nnsig")), "--build", str(folder), "-T", "2",
+              "--json")  # fmt: skip
+    assert sim.code == 0, sim.err
+    out = json.loads(sim.out)
+    assert out["stamp_timed"] and out["states_equal"]
+    twin = cli("twin", str(folder), "-T", "2", "--json")
+    assert twin.code == 0, twin.err
+    report = json.loads(twin.out)
+    assert report["stamp_distance"] == pytest.approx(out["distance"], abs=1e-12)
+    assert report["twin_distance"] == pytest.approx(out["distance"], abs=1e-12)
+    assert report["sim_distance"] is not None
+    other = cli("simulate", str(builtin_controller("ca1d")), "--build", str(folder))
+    assert other.code != 0 and "not the controller" in other.err
+    video = cli("simulate", "--build", str(folder), "--video", "x.mp4")
+    assert video.code != 0 and "does not combine" in video.err
+
+
+def test_evolve_stamp_timed_needs_physics_and_a_model(cli, tmp_path: Path) -> None:
+    from bstool.evolve import driver
+    from bstool.evolve.engine import GAParams
+
+    bad = cli("evolve", "ca1d", "--stamp-timed", "--fitness", "toy", "--out", str(tmp_path / "a"))
+    assert bad.code != 0 and "physics" in bad.err
+    bad = cli("evolve", "ca1d", "--period", "0.5", "--out", str(tmp_path / "b"))
+    assert bad.code != 0 and "--stamp-timed" in bad.err
+    plan = driver.plan_new("ca1d", GAParams(pop=2, gens=1, transitions=2, seed=1),
+                           stamp_timed=True)  # fmt: skip
+    with pytest.raises(InputError, match="schedule model"):
+        driver.execute(plan, workers=1)
+
+
+@pytest.mark.slow
+def test_evolve_stamp_timed_runs_and_resumes(cli, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    args = ["--pop", "2", "--gens", "1", "--transitions", "2", "--seed", "3", "--workers", "1"]
+    run = cli("evolve", "nnsig", "--stamp-timed", *args, "--out", str(out), "-q")
+    assert run.code == 0, run.err
+    best = fileio.read_json(out / "best.json")
+    assert best["fitness"] > 0
+    more = cli("evolve", "--resume", str(out), "--gens", "2", "--workers", "1", "-q")
+    assert more.code == 0, more.err
