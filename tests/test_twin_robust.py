@@ -99,3 +99,19 @@ def test_every_module_equals_the_healthy_reference(
         if not np.array_equal(got[:, i, j], want[:, i, j])
     ]
     assert not wrong, f"{model} under {case}: modules {wrong} differ from `bstool states`"
+
+
+def test_a_rebooted_module_s_record_restarts_at_the_transition_it_rejoins() -> None:
+    """``RobotTwin._rejoin``: the first pulse after a boot shows transition ``tn`` (mod 8),
+    placed nearest the end of the record (docs/twin.md, "Perturbations")."""
+    from hil_mock.twin_result import ModuleRecord
+
+    rec = ModuleRecord(states=list(range(10)), times_ns=list(range(10)), rejoining=True)
+    RobotTwin._rejoin(rec, 9 % 8, 42, 99)  # rejoined at its last transition, 9
+    assert rec.states == [*range(9), 42] and not rec.rejoining and rec.last_tn == 1
+    rec = ModuleRecord(states=list(range(10)), times_ns=list(range(10)), rejoining=True)
+    RobotTwin._rejoin(rec, 10 % 8, 42, 99)  # one transition on
+    assert rec.states == [*range(10), 42]
+    rec = ModuleRecord(states=list(range(10)), times_ns=list(range(10)), rejoining=True)
+    RobotTwin._rejoin(rec, 12, 42, 99)  # still joining: nothing recorded
+    assert rec.states == list(range(10)) and rec.rejoining
