@@ -1,7 +1,9 @@
 """The draft serve-loop link for the CA models (protocol/drafts/serve-loop/, docs/link-redesign.md):
 compiled with ``BSTOOL_TEMPLATES`` pointing at the draft, it stays exact where today's protocol
 fails (a spread power-up, resets of a lead and of a middle module, shorter than the dead-limit)
-and under timing scale 3 and the combined perturbations with byte noise. No physics, T = 6.
+and under timing scale 3 and the combined perturbations with byte noise; a module failed from
+power-up is dead after the power-up window (``--fail``), one dying mid-run after the dead-limit
+(``--die``, against ``failed_at``). No physics, T = 6.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from bstool.buildfile import Build
 from bstool.builtin import builtin_controller
 from bstool.compile import compile_controller
 from bstool.controllers import load_controller
+from bstool.moduleid import ModuleId
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
 
@@ -52,6 +55,24 @@ def draft_builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Build]:
             compile_controller(builtin_controller(model), root / model)
             out[model] = load_build(root / model)
     return out
+
+
+@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
+@pytest.mark.parametrize(("kind", "mid"), [("fail", ModuleId(2, 3)), ("die", ModuleId(0, 0))])
+def test_the_draft_waits_out_dead_modules(
+    draft_builds: dict[str, Build], model: str, kind: str, mid: ModuleId
+) -> None:
+    build = draft_builds[model]
+    ctrl = load_controller(build.controller_file)
+    if kind == "fail":
+        twin = RobotTwin(build, physics=False, failed=[mid])
+        want = ctrl.states(T, failed=[mid])
+    else:
+        twin = RobotTwin(build, physics=False, die={mid: 3})
+        want = ctrl.states(T, failed_at={mid: 3})
+    result = twin.run(T)
+    assert not result.stalled
+    assert np.array_equal(result.state_array(build.legs, build.modules, T), want)
 
 
 @pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
