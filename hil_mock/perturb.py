@@ -256,6 +256,7 @@ class PerturbRun:
         stamp.brk = False
         rec = twin.records[mid]
         rec.last_tn = twin._readers[mid][1](stamp)  # the new program's count starts afresh
+        rec.rejoining = True  # its next pulse says which transition it rejoined at
         order = {m: i for i, m in enumerate(twin.order)}
         stamps = dict(twin.stamps)
         stamps[mid] = stamp

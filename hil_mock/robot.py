@@ -173,12 +173,32 @@ class RobotTwin(Body, Links, Faults, Scheduler):
             return
         state_of, tn_of = self._readers[mid]
         tn = tn_of(stamp)
+        if rec.rejoining:
+            self._rejoin(rec, tn, state_of(stamp), stamp.t)
+            return
         if tn != rec.last_tn:
             rec.last_tn = tn
             rec.states.append(state_of(stamp))
             rec.times_ns.append(stamp.t)
             if mid == self.reference and self.sim is not None:
                 self.path.append(self._disc_xy())
+
+    @staticmethod
+    def _rejoin(rec: ModuleRecord, tn: int, state: int, t_ns: int) -> None:
+        """The first pulse of a module booted again (``--reset``): it shows the state of the
+        transition ``tn`` (mod 8) it rejoined at, taken as the one nearest the end of its record
+        (neighbours are at most a transition or two apart, docs/twin.md); the record restarts
+        there. A program still joining (tn > 7) is not recorded."""
+        if tn > 7:
+            return
+        end = len(rec.states)
+        at = max(t for t in range(max(0, end - 8), end + 1) if t % 8 == tn)
+        del rec.states[at:]
+        del rec.times_ns[at:]
+        rec.states.append(state)
+        rec.times_ns.append(t_ns)
+        rec.last_tn = tn
+        rec.rejoining = False
 
     def run(
         self,

@@ -25,6 +25,7 @@ class ModuleRecord:
     states: list[int] = field(default_factory=list)
     times_ns: list[int] = field(default_factory=list)
     last_tn: int | None = None
+    rejoining: bool = False  # booted again (--reset): re-aligned at its next servo pulse
 
 
 @dataclass

@@ -35,8 +35,20 @@ DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS, used when the file has no max
     help="A module that fails during the run: it follows its rule up to S^T, then holds S^T "
     "(T = 0 is --fail); repeatable.",
 )
+@click.option(
+    "--rejoin",
+    "rejoin",
+    multiple=True,
+    metavar="L.M@T",
+    help="A failed module (--fail or --fail-at) that comes back: it still holds its state in "
+    "R^T and follows its rule again from R^(T+1), starting from the state it held; repeatable.",
+)
 def command(
-    controller: str, transitions: int | None, failed: tuple[str, ...], fail_at: tuple[str, ...]
+    controller: str,
+    transitions: int | None,
+    failed: tuple[str, ...],
+    fail_at: tuple[str, ...],
+    rejoin: tuple[str, ...],
 ) -> None:
     """Print CONTROLLER's state sequence R^0..R^T: a JSON array of T+1 frames, each a list of
     n legs of m module states (0..15). Every later stage is checked against this output."""
@@ -49,7 +61,8 @@ def command(
         if mid in dead:
             raise InputError(f"module {mid} is both failed from power-up and failing at {when}",
                              hint="give it once: --fail L.M, or --fail-at L.M@T")  # fmt: skip
-    frames = ctrl.states(transitions, failed, failed_at=late)
+    back = dict(parse_failure_time(r, ctrl.legs, ctrl.modules, "--rejoin") for r in rejoin)
+    frames = ctrl.states(transitions, failed, failed_at=late, rejoin=back)
     lines = [
         "[" + ",".join("[" + ",".join(str(s) for s in leg) + "]" for leg in frame) + "]"
         for frame in frames.tolist()

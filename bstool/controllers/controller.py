@@ -96,33 +96,56 @@ class Controller:
         transitions: int,
         failed: FailedSpec = (),
         failed_at: FailedAtSpec | None = None,
+        rejoin: FailedAtSpec | None = None,
     ) -> IntArray:
         """R^0..R^T, shape (T+1, n, m); failed modules keep their R^0 state.
 
         ``failed_at`` maps modules to the transition T0 at which they fail during the run: such
         a module follows its rule up to S^T0 and then holds S^T0 (T0 = 0 is ``failed``); its
         neighbours (CA) and the modules after it (NN) read the held state.
+
+        ``rejoin`` maps failed modules (``failed`` or ``failed_at``) to the transition T2 >= T0
+        at which they come back: the module still shows its held state in R^T2 and from
+        R^(T2+1) on follows its rule again, from that held state (CA: its rule on R^T2's
+        neighbourhood; NN lead: held + 1, eq. 10; NN non-lead: its upstream t+1 states). T2 = T0
+        is the healthy sequence (docs/controllers.md "Rejoin").
         """
         if transitions < 0:
             raise InputError(f"transitions must be 0 or more, got {transitions}")
         cells = self.failed_cells(failed)
-        late: dict[tuple[int, int], int] = {}
+        fail: dict[tuple[int, int], int] = dict.fromkeys(cells, 0)
         for item, when in (failed_at or {}).items():
             (cell,) = self.failed_cells([item])
             if int(when) < 0:
                 raise InputError(
                     f"module {ModuleId(*cell)} fails at transition {when}: must be >= 0"
                 )
-            if cell not in cells:
-                late[cell] = min(int(when), late.get(cell, int(when)))
-        cells += [c for c, when in late.items() if when == 0]
-        times = sorted({when for when in late.values() if 0 < when < transitions})
-        if not times:
-            return self._states(transitions, cells)
-        frames = [self._states(times[0], cells)]
-        for start, end in zip(times, [*times[1:], transitions], strict=True):
-            cells += [c for c, when in late.items() if when == start]
-            frames.append(self._continue(frames[-1][-1], end - start, cells)[1:])
+            fail[cell] = min(int(when), fail.get(cell, int(when)))
+        back: dict[tuple[int, int], int] = {}
+        for item, when in (rejoin or {}).items():
+            (cell,) = self.failed_cells([item])
+            if cell not in fail:
+                raise InputError(
+                    f"module {ModuleId(*cell)} rejoins at transition {when} but never fails",
+                    hint="give its failure too: --fail L.M or --fail-at L.M@T, then --rejoin "
+                    "L.M@T2",
+                )
+            if int(when) < fail[cell]:
+                raise InputError(
+                    f"module {ModuleId(*cell)} rejoins at transition {when}, before it fails "
+                    f"at {fail[cell]}",
+                    hint="the rejoin transition T2 must be >= the failure transition T0",
+                )
+            back[cell] = int(when)
+
+        def held(t: int) -> list[tuple[int, int]]:
+            """Cells holding their state in the transition R^t -> R^(t+1)."""
+            return [c for c, t0 in fail.items() if t0 <= t and back.get(c, transitions) > t]
+
+        times = sorted({t for t in [*fail.values(), *back.values()] if 0 < t < transitions})
+        frames = [self._states(times[0] if times else transitions, held(0))]
+        for start, end in zip(times, [*times[1:], transitions], strict=False):
+            frames.append(self._continue(frames[-1][-1], end - start, held(start))[1:])
         return np.concatenate(frames)
 
     def _continue(

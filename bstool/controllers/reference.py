@@ -9,7 +9,7 @@ programs, the twin) are checked against it too. Keep it simple.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from bstool.controllers.angles import K, angle_to_state, state_to_angle
 
@@ -145,16 +145,29 @@ def sequence_reference(
     rules: Sequence[Sequence[int]] = (),
     weights: Sequence[Sequence[Sequence[int]]] = (),
     failed: Sequence[Cell] = (),
+    failed_at: Mapping[Cell, int] | None = None,
+    rejoin: Mapping[Cell, int] | None = None,
     k: int = K,
 ) -> list[Lattice]:
-    """R^0..R^T. For NN models ``initial`` only needs the leads; R^0 is propagated."""
+    """R^0..R^T. For NN models ``initial`` only needs the leads; R^0 is propagated.
+
+    ``failed_at[c] = T0``: cell c holds S^T0 in every transition from T0 on; ``rejoin[c] = T2``
+    (>= T0): from the transition R^T2 -> R^(T2+1) on it follows its rule again, from the state
+    it held. ``failed`` cells fail at 0.
+    """
     if model in NN_MODELS:
         current = nn_initial_reference(model, [leg[0] for leg in initial], weights, k)
     else:
         current = [list(leg) for leg in initial]
-    frozen = {(i, j): current[i][j] for i, j in failed}
+    fail = {**dict(failed_at or {}), **dict.fromkeys(failed, 0)}
+    back = dict(rejoin or {})
     frames = [current]
-    for _ in range(transitions):
+    for t in range(transitions):
+        frozen = {
+            (i, j): current[i][j]
+            for (i, j), t0 in fail.items()
+            if t0 <= t and back.get((i, j), transitions) > t
+        }
         if model in NN_MODELS:
             current = nn_step_reference(model, current, weights, frozen, k)
         else:

@@ -1,0 +1,93 @@
+"""The draft serve-loop link for the CA models (protocol/drafts/serve-loop/, docs/link-redesign.md):
+compiled with ``BSTOOL_TEMPLATES`` pointing at the draft, it stays exact where today's protocol
+fails (a spread power-up, resets of a lead and of a middle module, shorter than the dead-limit)
+and under timing scale 3 and the combined perturbations with byte noise; a module failed from
+power-up is dead after the power-up window (``--fail``), one dying mid-run after the dead-limit
+(``--die``, against ``failed_at``). No physics, T = 6.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bstool.buildfile import Build
+from bstool.builtin import builtin_controller
+from bstool.compile import compile_controller
+from bstool.controllers import load_controller
+from bstool.moduleid import ModuleId
+from hil_mock.perturb import Perturbation, Reset
+from hil_mock.robot import RobotTwin, load_build
+
+DRAFT = Path(__file__).resolve().parents[1] / "protocol" / "drafts" / "serve-loop" / "pbasic"
+T = 6
+RESET_AT_S = 1.5  # the draft has no roll call: its first transitions come after about 0.5 s
+
+CASES: dict[str, tuple[Perturbation, float]] = {
+    "start spread 3 s": (Perturbation(start_spread=3.0, seed=2), 0.0),
+    "reset lead 0.0 for 0.4 s": (Perturbation(resets=(Reset("0.0", RESET_AT_S, 0.4),)), 0.0),
+    "reset middle 2.3 for 0.8 s": (Perturbation(resets=(Reset("2.3", RESET_AT_S, 0.8),)), 0.0),
+    "timing scale 3": (Perturbation(timing_scale=3.0), 0.0),
+    "harsh + noise 1 %": (
+        Perturbation(
+            timing_scale=2.0,
+            timing_spread=0.2,
+            clock_spread=0.02,
+            start_spread=3.0,
+            item_time_us=100.0,
+            resets=(Reset("2.3", 5.0, 0.4),),
+            seed=3,
+        ),
+        0.01,
+    ),
+}
+
+
+@pytest.fixture(scope="module")
+def draft_builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Build]:
+    root = tmp_path_factory.mktemp("draft")
+    out: dict[str, Build] = {}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("BSTOOL_TEMPLATES", str(DRAFT))
+        for model in ("ca1d", "ca2dsing"):
+            compile_controller(builtin_controller(model), root / model)
+            out[model] = load_build(root / model)
+    return out
+
+
+@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
+@pytest.mark.parametrize(("kind", "mid"), [("fail", ModuleId(2, 3)), ("die", ModuleId(0, 0))])
+def test_the_draft_waits_out_dead_modules(
+    draft_builds: dict[str, Build], model: str, kind: str, mid: ModuleId
+) -> None:
+    build = draft_builds[model]
+    ctrl = load_controller(build.controller_file)
+    if kind == "fail":
+        twin = RobotTwin(build, physics=False, failed=[mid])
+        want = ctrl.states(T, failed=[mid])
+    else:
+        twin = RobotTwin(build, physics=False, die={mid: 3})
+        want = ctrl.states(T, failed_at={mid: 3})
+    result = twin.run(T)
+    assert not result.stalled
+    assert np.array_equal(result.state_array(build.legs, build.modules, T), want)
+
+
+@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_draft_stays_exact(draft_builds: dict[str, Build], model: str, case: str) -> None:
+    build = draft_builds[model]
+    assert "PayloadWait" in (build.root / "modules" / "L0.M1" / "main.bsx").read_text()
+    p, noise = CASES[case]
+    twin = RobotTwin(build, noise=noise, seed=p.seed, physics=False, perturb=p)
+    result = twin.run(T)
+    got = result.state_array(build.legs, build.modules, T)
+    want = load_controller(build.controller_file).states(T)
+    assert not result.stalled
+    assert np.array_equal(got, want), f"{model} under {case}"
+    outage = twin.perturb.reset_modules()
+    gaps = [g for m, g in result.servo_gaps.items() if m not in outage]
+    if p.timing_scale == 1.0 and p.timing_spread == 0.0:
+        assert max(gaps) < 0.025  # the servo is fed at nominal timing
