@@ -113,11 +113,14 @@ def test_the_nn_draft_stays_exact(draft_builds: dict[str, Build], model: str, ca
 
 
 @pytest.mark.parametrize("model", ["nnsin", "nnsig"])
-@pytest.mark.parametrize(("kind", "mid"), [("fail", ModuleId(2, 3)), ("die", ModuleId(2, 3))])
+@pytest.mark.parametrize(
+    ("kind", "mid"), [("fail", ModuleId(2, 3)), ("fail", ModuleId(0, 1)), ("die", ModuleId(2, 3))]
+)
 def test_the_nn_draft_bypasses_dead_modules(
     draft_builds: dict[str, Build], model: str, kind: str, mid: ModuleId
 ) -> None:
-    """2.2 relays to 2.4 on the bypass once 2.3 is past the power-up window / the dead-limit."""
+    """j - 1 relays to j + 1 on the bypass once j is past the power-up window / the dead-limit
+    (for module 1: the lead to module 2)."""
     build = draft_builds[model]
     ctrl = load_controller(build.controller_file)
     if kind == "fail":
@@ -139,13 +142,3 @@ def test_the_nn_draft_at_timing_scale_3(draft_builds: dict[str, Build]) -> None:
     got = result.state_array(build.legs, build.modules, T)
     assert not result.stalled
     assert np.array_equal(got, load_controller(build.controller_file).states(T))
-
-
-@pytest.mark.xfail(strict=True, reason="NN draft: the lead's chain neighbour dead from power-up")
-def test_the_nn_draft_with_module_1_failed(draft_builds: dict[str, Build]) -> None:
-    build = draft_builds["nnsin"]
-    mid = ModuleId(0, 1)
-    result = RobotTwin(build, physics=False, failed=[mid]).run(T)
-    want = load_controller(build.controller_file).states(T, failed=[mid])
-    assert not result.stalled
-    assert np.array_equal(result.state_array(build.legs, build.modules, T), want)
