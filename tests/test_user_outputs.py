@@ -63,6 +63,7 @@ def _cases(ctrl: Path, run: Path, bad: Path) -> dict[str, list[str]]:
         "evolve --out": ["evolve", "ca1d", "--pop", "4", "--gens", "2", "--out", str(bad / "e")],
         "demo --out": ["demo", "--out", str(bad / "d")],
         "twin --video": ["twin", str(BUILD), "-T", "1", "--video", str(bad / "t.mp4")],
+        "probe -o": ["probe", "--port", "/dev/nonexistent-port", "-o", str(bad / "timing.json")],
     }
 
 

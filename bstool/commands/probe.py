@@ -47,6 +47,9 @@ def command(
     flash that again afterwards), time the marker bytes it sends between loops of each
     instruction kind, PAUSE, PULSOUT, SERIN timeouts and SEROUT bytes, fit the timing model's
     coefficients with their uncertainty and write them to OUTPUT, for compile/twin --timing."""
+    from bstool import outputs
+
+    outputs.check_file(output, "timing file")  # before flashing and measuring, not after
     if port == "auto":
         port = resolve_auto()
     base = FAST if os.environ.get("BSTOOL_FLASH_FAST") == "1" else Timing()
