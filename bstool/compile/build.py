@@ -162,7 +162,7 @@ def _compile_loaded(
         for plan in tqdm(plans, desc="compile", unit="module", disable=not progress, leave=False)
     ]
     manifest = describe.manifest(ctrl, source_name, full_hash, period, results, tokenize)
-    wiring = wiring_md(ctrl, full_hash, results)
+    wiring = wiring_md(ctrl, full_hash, results, manifest)
     _write_atomically(out, results, manifest, wiring, ctrl.to_json())
     return BuildResult(out, full_hash, results, tokenize, manifest)
 

@@ -3,34 +3,21 @@ and start the robot compiled into this build (rendered from bstool/data/wiring.m
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import jinja2
 
 from bstool.compile.timing import PAD_PIN
-from bstool.compile.topology import PORTS, SERVO_PIN, Link, links, pin_role
+from bstool.compile.topology import PORTS, SERVO_PIN, pin_role
 from bstool.controllers import NN_MODELS
 from bstool.moduleid import ModuleId
 from bstool.robot import RobotSpec
 from bstool.wire import announce
 
 if TYPE_CHECKING:
+    from bstool.buildfile import Manifest
     from bstool.compile.results import ModuleResult
     from bstool.controllers import Controller
-
-BAUD_DEBUG = 240  # BS2sx baudmode of 9600 baud, true polarity (bs2sx.md: SERIN/SEROUT)
-
-
-@dataclass(frozen=True)
-class Wire:
-    number: int
-    master: str
-    master_pin: int
-    slave: str
-    slave_pin: int
-    colour: int
-    bypass: bool
 
 
 def _port_text(model: str) -> dict[str, str]:
@@ -48,11 +35,6 @@ def _port_text(model: str) -> dict[str, str]:
     }
 
 
-def _flash_slots(res: ModuleResult) -> list[int]:
-    """Rule slots first, slot 0 last: slot 0 starts running as soon as it is written."""
-    return [*(s.slot for s in reversed(res.slots[1:])), 0]
-
-
 def _environment() -> jinja2.Environment:
     return jinja2.Environment(
         loader=jinja2.PackageLoader("bstool", "data"),
@@ -64,10 +46,12 @@ def _environment() -> jinja2.Environment:
     )
 
 
-def wiring(ctrl: Controller, full_hash: str, results: list[ModuleResult]) -> str:
-    """The text of WIRING.md for a build of ``ctrl`` holding the modules of ``results``."""
+def wiring(
+    ctrl: Controller, full_hash: str, results: list[ModuleResult], manifest: Manifest
+) -> str:
+    """The text of WIRING.md for a build of ``ctrl`` holding the modules of ``results``; the
+    wires and the flashing order are the manifest's."""
     spec = RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k)
-    wires: list[Link] = links(ctrl.model, ctrl.legs, ctrl.modules)
     roles = {
         pin_role(ctrl.model, ctrl.legs, ctrl.modules, r.plan.mid, ll.peer)
         for r in results
@@ -75,8 +59,7 @@ def wiring(ctrl: Controller, full_hash: str, results: list[ModuleResult]) -> str
     }
     text = _port_text(ctrl.model)
     ports = [(PORTS[k], text[k]) for k in text if k in roles]
-    ordered = sorted(results, key=lambda r: r.plan.mid)
-    first = ordered[0].plan.mid if ordered else ModuleId(0, 0)
+    first = manifest.flash_order[0].module if manifest.flash_order else ModuleId(0, 0)
     context = {
         "hash8": full_hash[:8],
         "announcement": announce.generic(full_hash[:8]),
@@ -90,15 +73,12 @@ def wiring(ctrl: Controller, full_hash: str, results: list[ModuleResult]) -> str
         "axes": [(j, spec.axis_of(j)) for j in range(ctrl.modules)],
         "servo_pin": SERVO_PIN,
         "pad_pin": PAD_PIN,
-        "baud_debug": BAUD_DEBUG,
+        "baud_debug": announce.BAUDMODE,
         "ports": ports,
         "bypass": "bypass_next" in roles,
-        "wires": [
-            Wire(n, w.master.label, w.master_pin, w.slave.label, w.slave_pin, w.colour, w.bypass)
-            for n, w in enumerate(wires, start=1)
-        ],
+        "wires": manifest.links,
         "roll_s": max((r.plan.roll_ms for r in results), default=0) / 1000,
-        "order": [(r.plan.mid.label, str(r.plan.mid), _flash_slots(r)) for r in ordered],
+        "order": manifest.flash_order,
         "first": str(first),
         "first_label": first.label,
     }

@@ -21,12 +21,13 @@ from bstool.compile.timing import PAD_PIN
 from bstool.errors import BuildError
 from bstool.timingfile import DEFAULT, TimingModel
 from bstool.tokenizer import SlotImage, tokenize_source
+from bstool.wire import announce
 
 TEMPLATE = "probe.bsx.j2"
 HEADER = "bstool probe 1"
 END_MARKER = 250
 SHORT_FRACTION = 0.2  # short loop = 1/5 of the long one
-DEBUG_MODE = 240  # 9600 baud, the mode of the marker and SEROUT bytes
+DEBUG_MODE = announce.BAUDMODE  # 9600 baud, the mode of the marker and SEROUT bytes
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,8 @@ from bstool.moduleid import ModuleId
 PIN = 16
 """DEBUG's pin: the programming port's SOUT."""
 BAUD = 9600
+BAUDMODE = 240
+"""SERIN/SEROUT's baudmode for the programming port at 9600 baud, true polarity (bs2sx.md)."""
 END = "\r"
 PREFIX = "bstool"
 
