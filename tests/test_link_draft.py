@@ -22,6 +22,7 @@ from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
+from hil_mock.twin_result import TwinResult
 
 DRAFT = Path(__file__).resolve().parents[1] / "protocol" / "drafts" / "serve-loop" / "pbasic"
 T = 6
@@ -59,12 +60,8 @@ def draft_builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Build]:
     return out
 
 
-@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
-@pytest.mark.parametrize(("kind", "mid"), [("fail", ModuleId(2, 3)), ("die", ModuleId(0, 0))])
-def test_the_draft_waits_out_dead_modules(
-    draft_builds: dict[str, Build], model: str, kind: str, mid: ModuleId
-) -> None:
-    build = draft_builds[model]
+def _assert_exact_with_a_dead_module(build: Build, kind: str, mid: ModuleId) -> None:
+    """``kind`` "fail": dead from power-up; "die": dying at transition 3."""
     ctrl = load_controller(build.controller_file)
     if kind == "fail":
         twin = RobotTwin(build, physics=False, failed=[mid])
@@ -77,18 +74,33 @@ def test_the_draft_waits_out_dead_modules(
     assert np.array_equal(result.state_array(build.legs, build.modules, T), want)
 
 
-@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
-@pytest.mark.parametrize("case", list(CASES))
-def test_the_draft_stays_exact(draft_builds: dict[str, Build], model: str, case: str) -> None:
-    build = draft_builds[model]
-    assert "PayloadWait" in (build.root / "modules" / "L0.M1" / "main.bsx").read_text()
+def _assert_exact_under(build: Build, case: str) -> tuple[RobotTwin, TwinResult]:
+    """The healthy reference, every state, under the perturbation ``case``."""
     p, noise = CASES[case]
     twin = RobotTwin(build, noise=noise, seed=p.seed, physics=False, perturb=p)
     result = twin.run(T)
     got = result.state_array(build.legs, build.modules, T)
     want = load_controller(build.controller_file).states(T)
     assert not result.stalled
-    assert np.array_equal(got, want), f"{model} under {case}"
+    assert np.array_equal(got, want), f"{build.manifest.controller.model} under {case}"
+    return twin, result
+
+
+@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
+@pytest.mark.parametrize(("kind", "mid"), [("fail", ModuleId(2, 3)), ("die", ModuleId(0, 0))])
+def test_the_draft_waits_out_dead_modules(
+    draft_builds: dict[str, Build], model: str, kind: str, mid: ModuleId
+) -> None:
+    _assert_exact_with_a_dead_module(draft_builds[model], kind, mid)
+
+
+@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_draft_stays_exact(draft_builds: dict[str, Build], model: str, case: str) -> None:
+    build = draft_builds[model]
+    assert "PayloadWait" in (build.root / "modules" / "L0.M1" / "main.bsx").read_text()
+    twin, result = _assert_exact_under(build, case)
+    p, _ = CASES[case]
     outage = twin.perturb.reset_modules()
     gaps = [g for m, g in result.servo_gaps.items() if m not in outage]
     if p.timing_scale == 1.0 and p.timing_spread == 0.0:
@@ -103,13 +115,7 @@ NN_CASES = [c for c in CASES if c != "timing scale 3"]
 def test_the_nn_draft_stays_exact(draft_builds: dict[str, Build], model: str, case: str) -> None:
     build = draft_builds[model]
     assert "TOOK" in (build.root / "modules" / "L0.M1" / "main.bsx").read_text()
-    p, noise = CASES[case]
-    twin = RobotTwin(build, noise=noise, seed=p.seed, physics=False, perturb=p)
-    result = twin.run(T)
-    got = result.state_array(build.legs, build.modules, T)
-    want = load_controller(build.controller_file).states(T)
-    assert not result.stalled
-    assert np.array_equal(got, want), f"{model} under {case}"
+    _assert_exact_under(build, case)
 
 
 @pytest.mark.parametrize("model", ["nnsin", "nnsig"])
@@ -121,17 +127,7 @@ def test_the_nn_draft_bypasses_dead_modules(
 ) -> None:
     """j - 1 relays to j + 1 on the bypass once j is past the power-up window / the dead-limit
     (for module 1: the lead to module 2)."""
-    build = draft_builds[model]
-    ctrl = load_controller(build.controller_file)
-    if kind == "fail":
-        twin = RobotTwin(build, physics=False, failed=[mid])
-        want = ctrl.states(T, failed=[mid])
-    else:
-        twin = RobotTwin(build, physics=False, die={mid: 3})
-        want = ctrl.states(T, failed_at={mid: 3})
-    result = twin.run(T)
-    assert not result.stalled
-    assert np.array_equal(result.state_array(build.legs, build.modules, T), want)
+    _assert_exact_with_a_dead_module(draft_builds[model], kind, mid)
 
 
 @pytest.mark.xfail(strict=True, reason="NN draft: scale 3 stalls (relay wave ~2 s a transition)")
