@@ -3,7 +3,7 @@
 Evolution cannot compile and run every candidate on the twin, so :func:`schedule_model`
 compiles random controllers of the model (fixed seeds) with the build's own templates,
 records on the twin without physics when each module's servo starts each transition
-(:class:`hil_mock.schedule_extract.Recorder`, the same record ``bstool twin`` keeps), and fits
+(each module's pulse times, the record every twin keeps), and fits
 a :class:`bstool.sim.timed.ScheduleModel`: each module's power-up drive instant, the mean
 instant of every transition, each module's mean offset from it and the mean period.
 Applied to any candidate's state sequence it gives that candidate's stamp-timed schedule in
@@ -20,15 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
-from bstool import __version__, buildfile, fileio
-from bstool.compile import compile_controller, templates_dir
+from bstool import __version__, buildfile
+from bstool.compile import templates_dir
+from bstool.compile.build import compile_loaded
 from bstool.controllers import Controller
 from bstool.errors import BuildError
 from bstool.evolve.problem import Problem
 from bstool.robot import state_to_angle
 from bstool.sim.timed import ScheduleModel
+from hil_mock.robot import RobotTwin
 from hil_mock.schedule import CHUNK_STEPS
-from hil_mock.schedule_extract import Recorder
 from hil_mock.twin_result import NS
 
 #: transitions recorded per representative (MAX_TRANS: what evolution runs)
@@ -61,7 +62,7 @@ def templates_hash() -> str:
 def transition_instants(build: buildfile.Build, transitions: int) -> tuple[np.ndarray, int]:
     """(A, T + 2) seconds: each module's first servo pulse (column 0) and the first pulse of
     each transition 1..T+1, recorded on the twin without physics; and the reference actuator."""
-    twin = Recorder(build)
+    twin = RobotTwin(build, physics=False)  # only pulse times are read: no command log
     twin.run(transitions + 1)
     rows = []
     for mid in twin.order:
@@ -108,11 +109,9 @@ def _cached(
         for seed in range(representatives):
             ctrl = random_controller(model, seed, legs=legs, modules=modules)
             states = ctrl.k
-            src = Path(tmp) / f"c{seed}.json"
-            fileio.write_json(src, ctrl.to_json())
             out = Path(tmp) / f"b{seed}"
-            compile_controller(src, out, period=period)
-            c, reference = transition_instants(buildfile.load(out), transitions)
+            res = compile_loaded(ctrl, out, period=period)  # in memory: no controller file
+            c, reference = transition_instants(buildfile.Build(out, res.manifest), transitions)
             instants.append(c)
     return fit(instants, reference, states)
 

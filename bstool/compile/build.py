@@ -70,8 +70,6 @@ def compile_controller(
     ``force`` (and never when it holds the controller or calibration file).
     ``tokenize=False`` writes the PBASIC sources only (no slot images: flash and the twin
     refuse such a build); the golden tests use it."""
-    inputs = (controller,) + ((calibration,) if calibration is not None else ())
-    check_output(Path(out_dir), force=force, protect=inputs)  # before any work
     ctrl = load_controller(controller)
     return compile_loaded(
         ctrl,
@@ -83,7 +81,7 @@ def compile_controller(
         tokenize=tokenize,
         progress=progress,
         force=force,
-        protect=inputs,
+        protect=(controller,),
         timing=timing,
     )
 
