@@ -14,14 +14,13 @@ imports MuJoCo before a simulation needs it. Reference: docs/api.md.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bstool.controllers import Controller, from_json, save_controller
+from bstool.controllers import Controller, from_json
 from bstool.controllers import load_controller as _load_file
 from bstool.errors import InputError
 from bstool.evolve.driver import (
@@ -207,6 +206,7 @@ def compile(  # the stage's name: bstool.api is used as a namespace
     Raises ``BuildError`` when the controller does not fit, ``InputError`` for bad paths.
     """
     from bstool.compile import compile_controller
+    from bstool.compile.build import compile_loaded
 
     options: dict[str, Any] = {
         "calibration": calibration,
@@ -217,11 +217,9 @@ def compile(  # the stage's name: bstool.api is used as a namespace
     }
     if isinstance(controller, str | os.PathLike):
         return compile_controller(controller, out, **options)
-    ctrl = load_controller(controller)
-    with tempfile.TemporaryDirectory(prefix="bstool-api-") as tmp:
-        path = Path(tmp) / "controller.json"
-        save_controller(ctrl, path)
-        return compile_controller(path, out, **options)
+    return compile_loaded(
+        load_controller(controller), out, source_name="controller.json", **options
+    )
 
 
 def tokenize(path: PathLike) -> Project:

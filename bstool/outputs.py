@@ -19,9 +19,6 @@ from pathlib import Path
 
 from bstool.errors import InputError
 
-#: exit code of every "cannot write here" error (an :class:`InputError`)
-EXIT_CODE = InputError.exit_code
-
 _STALE = re.compile(r"^\.(?P<name>.+)\.(?:(?:new|old)-(?P<pid>\d+)-.+|(?P<fpid>\d+)-.+\.tmp)$")
 
 
@@ -153,13 +150,6 @@ def clean_stale(path: str | os.PathLike[str]) -> list[Path]:
 def temp_file_prefix(target: Path) -> str:
     """The prefix of an atomic write's temporary file beside ``target`` (see clean_stale)."""
     return f".{target.name}.{os.getpid()}-"
-
-
-def make_dir(path: str | os.PathLike[str]) -> Path:
-    """``mkdir -p`` with the user's umask (what a shell's mkdir would make)."""
-    p = Path(path)
-    p.mkdir(parents=True, exist_ok=True)
-    return p
 
 
 @contextmanager

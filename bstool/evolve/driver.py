@@ -39,9 +39,6 @@ from bstool.evolve.problem import Problem
 if TYPE_CHECKING:
     from bstool.sim.timed import ScheduleModel
 
-#: what a fitness value is, per evaluator kind (the value itself: metres, or toy units)
-UNITS = {"physics": "m", "toy": "toy units"}
-
 
 def fitness_text(value: float, kind: str) -> str:
     """A fitness for people: physics in cm (eq. 6 distance, as the plots), toy unit-less."""
