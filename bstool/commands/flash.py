@@ -92,9 +92,14 @@ def command(
     tracer: Callable[[str], None] | None = (lambda m: click.echo(m, err=True)) if trace else None
     bars = not quiet and sys.stderr.isatty()
 
-    def one(port_name: str, plan: ModulePlan) -> ModuleReport:
+    def resolved(port_name: str) -> str:
+        """``auto``: the adapter plugged in (asked once per module when several are)."""
         if port_name == "auto":
-            port_name = resolve_auto(_choose if sys.stdin.isatty() else None)
+            return resolve_auto(_choose if sys.stdin.isatty() else None)
+        return port_name
+
+    def one(port_name: str, plan: ModulePlan) -> ModuleReport:
+        port_name = resolved(port_name)
         bar: list[Any] = []
 
         def start(slot_no: int, total: int) -> None:
@@ -170,11 +175,11 @@ def command(
                 'port, e.g. {"L0.M0": "/dev/ttyUSB0", ...}',
             ) from None
         answer = answer.strip().lower()
-        return "quit" if answer == "q" else None if answer == "s" else port
+        if answer in ("q", "s"):
+            return "quit" if answer == "q" else None
+        return None if port is None else resolved(port)  # once: check and flash share it
 
     def check(port_name: str, plan: ModulePlan) -> str | None:
-        if port_name == "auto":
-            port_name = resolve_auto(_choose if sys.stdin.isatty() else None)
         return check_module(port_name, plan, baud=baud, timing=timing)
 
     result = flash_all(
