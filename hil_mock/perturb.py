@@ -273,18 +273,8 @@ class PerturbRun:
         """The options, what was drawn and what happened (the ``perturbations`` of --json)."""
         from hil_mock.stamp.clock import UART_TOLERANCE
 
-        p = self.perturbation
-        out = p.options()
+        out = draws_json(self.perturbation, self.draws)
         out["uart_tolerance"] = UART_TOLERANCE
-        out["modules"] = {
-            str(m): {
-                "timing": d.timing,
-                "resonator": d.resonator,
-                "speed": d.speed(p.timing_scale),
-                "start_s": d.start_s,
-            }
-            for m, d in self.draws.items()
-        }
         out["power"] = [
             {
                 "module": str(m),
