@@ -17,7 +17,17 @@ from bstool.moduleid import ModuleId
 from hil_mock.stamp import Stamp
 from hil_mock.twin_result import NS
 
+
+def robot_spec(build: Build) -> RobotSpec:
+    """The robot a build was compiled for (the manifest's size, the default geometry)."""
+    from bstool.robot import RobotSpec
+
+    robot = build.manifest.robot
+    return RobotSpec(legs=robot.legs, modules=robot.modules, states=robot.states)
+
+
 if TYPE_CHECKING:
+    from bstool.robot import RobotSpec
     from bstool.sim.simulator import Simulator
 
 LIMP_AFTER_S = 0.06
@@ -60,12 +70,9 @@ class Body:
         if not physics:
             self.dt_ns = 2_000_000
             return
-        from bstool.robot import RobotSpec
         from bstool.sim.simulator import Simulator
 
-        robot = self.build.manifest.robot
-        spec = RobotSpec(legs=robot.legs, modules=robot.modules, states=robot.states)
-        self.sim = Simulator(spec)
+        self.sim = Simulator(robot_spec(self.build))
         self.sim.reset(self.sim.data)
         self.dt_ns = round(self.sim.model.opt.timestep * NS)
         self._gain = self.sim.model.actuator_gainprm.copy()

@@ -11,9 +11,9 @@ import numpy as np
 
 from bstool.buildfile import Build
 from bstool.moduleid import ModuleId
-from bstool.robot import RobotSpec
 from bstool.sim.simulator import Simulator
 from bstool.wire import announce
+from hil_mock.body import robot_spec
 from hil_mock.twin_result import TwinResult
 
 
@@ -56,8 +56,7 @@ def reference_simulator(build: Build) -> Simulator:
     (``compile --period``), settling in R^0 as long as the twin does before its first
     transition: the twin's path then starts from the same rest pose (a 0.5 s settle leaves the
     robot still sliding, which shifts early paths by cm)."""
-    robot = build.manifest.robot
-    spec = RobotSpec(legs=robot.legs, modules=robot.modules, states=robot.states)
+    spec = robot_spec(build)
     return Simulator(spec, transition_time=build.period, settle_time=settle_seconds(build))
 
 

@@ -21,7 +21,7 @@ from bstool.buildfile import Build
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from bstool.sim.timed import StampSchedule
-from hil_mock.body import ServoTrack
+from hil_mock.body import ServoTrack, robot_spec
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import RobotTwin
 from hil_mock.twin_result import NS, TwinResult
@@ -111,11 +111,9 @@ def extract_schedule(
 
 def stamp_timed_simulator(build: Build) -> Simulator:
     """The MuJoCo robot of ``build`` (the twin's own: same spec, same physics)."""
-    from bstool.robot import RobotSpec
     from bstool.sim.simulator import Simulator
 
-    robot = build.manifest.robot
-    return Simulator(RobotSpec(legs=robot.legs, modules=robot.modules, states=robot.states))
+    return Simulator(robot_spec(build))
 
 
 def simulate_build(
