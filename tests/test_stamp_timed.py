@@ -218,3 +218,33 @@ def test_evolve_stamp_timed_runs_and_resumes(cli, tmp_path: Path) -> None:
     assert best["fitness"] > 0
     more = cli("evolve", "--resume", str(out), "--gens", "2", "--workers", "1", "-q")
     assert more.code == 0, more.err
+
+
+@pytest.mark.slow
+def test_report_stamp_timed_runs_every_experiment_on_the_schedule(cli, tmp_path: Path) -> None:
+    from bstool.moduleid import ModuleId
+    from bstool.sim.batch import BatchEvaluator
+    from hil_mock.schedule_model import schedule_model
+
+    src = builtin_controller("ca1d")
+    args = [str(src), "-T", "4", "--extrapolate", "4", "--workers", "1", "-q"]
+    bad = cli("report", *args, "--period", "0.5", "-o", str(tmp_path / "bad"))
+    assert bad.code == 2 and "--stamp-timed" in bad.err
+    run = cli("report", *args, "--stamp-timed", "-o", str(tmp_path / "rep"))
+    assert run.code == 0, run.err
+    report = fileio.read_json(tmp_path / "rep" / "report.json")
+    assert report["evaluation"].startswith("stamp-timed")
+    entry = report["entries"][0]
+    c = load_controller(src)
+    model = schedule_model("ca1d", legs=c.legs, modules=c.modules)
+    failed = ModuleId(0, 0)
+    with BatchEvaluator(RobotSpec(legs=c.legs, modules=c.modules), workers=1) as ev:
+        healthy, dead = ev.evaluate_schedules(
+            [model.schedule(c.states(4)), model.schedule(c.states(4, failed=[failed]))]
+        )
+        plain = ev.evaluate([c.states(4)])[0]
+    assert entry["distance"] == pytest.approx(healthy.distance, abs=1e-12)
+    assert entry["distance"] != pytest.approx(plain.distance, abs=1e-6)
+    assert entry["faults"]["runs"][0]["failed"] == [str(failed)]
+    assert entry["faults"]["runs"][0]["distance"] == pytest.approx(dead.distance, abs=1e-12)
+    assert "stamp-timed" in (tmp_path / "rep" / "index.html").read_text()

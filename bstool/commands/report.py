@@ -31,6 +31,15 @@ import click
     "M_D against K per controller (0: skip; costs 5 x SAMPLES runs per controller).",
 )
 @click.option("--workers", type=click.IntRange(min=1), default=None, help="Physics threads.")
+@click.option(
+    "--stamp-timed",
+    is_flag=True,
+    help="Every run moves each servo when a build's stamp would (the schedule model of "
+    "`bstool evolve --stamp-timed`, docs/twin.md); the perturbed starts stay plain.",
+)
+@click.option("--period", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="--stamp-timed: the period the controllers will be compiled with "
+              "(default: compile's).")  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace OUT even if it is not an earlier report.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar or messages.")
 def command(
@@ -40,14 +49,32 @@ def command(
     extrapolate: int,
     multi_samples: int,
     workers: int | None,
+    stamp_timed: bool,
+    period: float | None,
     force: bool,
     quiet: bool,
 ) -> None:
     """Compare INPUTS (evolve run directories or controller files): fitness curves, disc paths,
     mobility under single failures, distance beyond MAX_TRANS, spread over leg rotations, and
     a table of the numbers. Open OUT/index.html in any browser (no network needed)."""
+    from bstool.errors import InputError
     from bstool.experiments import progress
     from bstool.experiments.report import build_report
+
+    if period is not None and not stamp_timed:
+        raise InputError("--period only applies with --stamp-timed", hint="add --stamp-timed")
+    schedule_for = None
+    evaluation = "plain (every servo moves at each transition boundary)"
+    if stamp_timed:
+        from bstool.controllers import Controller
+        from hil_mock.schedule_model import schedule_model
+
+        def schedule_for(c: Controller) -> object:
+            return schedule_model(c.model, period=period, legs=c.legs, modules=c.modules)
+
+        evaluation = "stamp-timed (each servo moved when its stamp would, schedule model" + (
+            ")" if period is None else f", period {period:g} s)"
+        )
 
     with progress.bar("report", None, quiet=quiet) as bar:
 
@@ -68,5 +95,7 @@ def command(
             force=force,
             runs_done=bar,
             runs_total=bar.total,
+            schedule_for=schedule_for,
+            evaluation=evaluation,
         )
     click.echo(f"report: {index}")

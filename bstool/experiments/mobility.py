@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -40,6 +41,12 @@ def distances_with(evaluator: object, progress: Callable[[int], None] | None = N
         return out
 
     return evaluate
+
+
+def distances_of(run: Callable[[Sequence[np.ndarray]], Sequence[Any]]) -> Evaluate:
+    """:data:`Evaluate` from a function giving one result with a ``distance`` per sequence
+    (a plain or a stamp-timed batch run)."""
+    return lambda states: [float(r.distance) for r in run(states)]
 
 
 def mobility(distance: float, baseline: float) -> float:

@@ -19,11 +19,13 @@ from bstool.controllers import Controller
 from bstool.errors import InputError
 from bstool.experiments import common, mobility
 from bstool.experiments.extrapolate import reinit_states
-from bstool.experiments.mobility import SingleFaults, distances_with, single_failures
+from bstool.experiments.mobility import SingleFaults, single_failures
 from bstool.experiments.paths import distance_curve, path_shape
 from bstool.experiments.robustness import perturbation_spread, rotation_spread
 
 Progress = Callable[[str], None]
+ScheduleFor = Callable[[Controller], Any]
+"""The stamp-timed schedule model of a controller (a ``bstool.sim.timed.ScheduleModel``)."""
 
 
 @dataclass
@@ -70,6 +72,8 @@ def build_report(
     force: bool = False,
     runs_done: Callable[[int], None] | None = None,
     runs_total: Callable[[int], None] | None = None,
+    schedule_for: ScheduleFor | None = None,
+    evaluation: str = "plain",
 ) -> Path:
     """Run every experiment for every input and write ``out_dir/index.html`` (atomically: the
     whole directory appears at once). ``multi_samples`` > 0 adds the multiple-failure curves:
@@ -77,7 +81,10 @@ def build_report(
 
     ``out_dir`` must be new, empty, or an earlier report (else ``force``); it may never be or
     hold one of the inputs. ``runs_total(n)`` hears how many simulations are to come,
-    ``runs_done(k)`` of every k finished."""
+    ``runs_done(k)`` of every k finished. ``schedule_for`` (``bstool report --stamp-timed``)
+    makes every run stamp-timed: each state sequence is played as the schedule model of its
+    controller says a build would (``evaluation`` names it in the page and report.json); the
+    perturbed starts stay on the plain simulator (a perturbed start has no schedule model)."""
     from bstool.experiments import plots
     from bstool.sim.batch import BatchEvaluator
     from bstool.sim.plot import plot_paths
@@ -102,16 +109,16 @@ def build_report(
         for e in entries:
             c = e.loaded.controller
             with BatchEvaluator(e.loaded.spec, workers=workers) as ev:
-                evaluate = distances_with(ev, runs_done)
+                run = _runner(ev, None if schedule_for is None else schedule_for(c), runs_done)
+                evaluate = mobility.distances_of(run)
                 say(f"{e.name}: path and extrapolation")
-                plain, reinit = ev.evaluate(
-                    [c.states(extrapolate), reinit_states(c, extrapolate, transitions)],
-                    progress=runs_done,
+                plain, reinit = run(
+                    [c.states(extrapolate), reinit_states(c, extrapolate, transitions)]
                 )
                 if extrapolate >= transitions:  # the same states, so the same first T steps
                     base = SimResult(plain.path[: transitions + 1])
                 else:
-                    base = ev.evaluate([c.states(transitions)], progress=runs_done)[0]
+                    base = run([c.states(transitions)])[0]
                 say(f"{e.name}: {c.legs * c.modules} single failures")
                 f = single_failures(c, evaluate, transitions, base.distance)
                 say(f"{e.name}: leg rotations and perturbed starts")
@@ -174,6 +181,7 @@ def build_report(
         context = {
             "title": "bstool report: brittle star controllers",
             "version": __version__,
+            "evaluation": evaluation,
             "transitions": transitions,
             "extrapolate": extrapolate,
             "entries": rows,
@@ -184,6 +192,17 @@ def build_report(
         fileio.write_text(tmp / "index.html", _render(context))
         fileio.write_json(tmp / "report.json", {k: v for k, v in context.items()})
     return out / "index.html"
+
+
+def _runner(
+    ev: Any, schedule_model: Any, progress: Callable[[int], None] | None
+) -> Callable[[Sequence[np.ndarray]], list[Any]]:
+    """State sequences → SimResults: plain, or stamp-timed with ``schedule_model``."""
+    if schedule_model is None:
+        return lambda seqs: list(ev.evaluate(list(seqs), progress=progress))
+    return lambda seqs: list(
+        ev.evaluate_schedules([schedule_model.schedule(s) for s in seqs], progress=progress)
+    )
 
 
 MARKER = b'<meta name="generator" content="bstool report'
