@@ -17,6 +17,7 @@ Prints, for a population of --pop candidates (default 100) of the default robot:
   schedule computation rate (schedules/s).
 
 Usage: python bench/evaluate.py [--pop 100] [--transitions 30] [--ga-gens 40] [--rounds 2]
+       [--stamp-gens 4] [--stamp-models nnsin,nnsig,ca1d]
 """
 
 from __future__ import annotations
@@ -133,6 +134,8 @@ def main() -> None:
     ap.add_argument("--ga-gens", type=int, default=40)
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds, best kept")
     ap.add_argument("--stamp-gens", type=int, default=4, help="GA generations, stamp-timed")
+    ap.add_argument("--stamp-models", default="nnsin,nnsig,ca1d",
+                    help="models of the stamp-timed GA runs (comma-separated)")  # fmt: skip
     args = ap.parse_args()
 
     problem = Problem("nnsin", transitions=args.transitions)
@@ -177,7 +180,7 @@ def main() -> None:
             f"   ratio {timed / plain:.3f}"
         )
 
-    for model in ("nnsin", "ca1d"):
+    for model in args.stamp_models.split(","):
         params = GAParams(pop=args.pop, gens=args.stamp_gens, transitions=args.transitions, seed=2)
         model_schedules = schedule_model(model)
         timed_rate = plain_rate = 0.0

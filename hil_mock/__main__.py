@@ -14,7 +14,7 @@ from bstool import fileio
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, all_modules, parse_module
 from hil_mock.eeprom import Eeprom
-from hil_mock.measured import use_file
+from hil_mock.measured import load as load_timing
 from hil_mock.perturb import Perturbation, draws_json, perturb_options, perturb_runner, serve_draws
 from hil_mock.progdevice import MODEL_IDS, ProgrammingDevice, Runner, default_runner
 from hil_mock.ptyendpoint import PtyEndpoint
@@ -94,7 +94,7 @@ def serve(
     """Serve virtual stamps on ptys; prints one "L<i>.M<j> /dev/pts/N" line each. With
     --timing real, slot 0 runs in real time on the interpreter (hil_mock/realtime.py)."""
     try:  # issue 13 §2
-        use_file(timing_model)
+        stamp_timing = load_timing(timing_model)
     except InputError as exc:
         raise click.UsageError(f"{exc} ({exc.hint})" if exc.hint else str(exc)) from None
     endpoints: dict[str, PtyEndpoint] = {}
@@ -103,7 +103,7 @@ def serve(
     for mid in mids:
         eeprom = Eeprom(eeprom_dir / f"{mid.label}.eeprom" if eeprom_dir else None)
         module_runner = _runner(runner, timing)
-        perturb_runner(module_runner, perturb, draws[mid])  # issue 12 §1
+        perturb_runner(module_runner, perturb, draws[mid], stamp_timing)  # issue 12 §1, 13 §2
         device = ProgrammingDevice(eeprom, model=model, runner=module_runner)
         endpoints[mid.label] = PtyEndpoint(device, timing=timing)
     if ports_file:  # before printing, so a reader of stdout finds the file complete

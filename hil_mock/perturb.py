@@ -27,6 +27,7 @@ from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
 
 if TYPE_CHECKING:
+    from bstool.timingfile import TimingModel
     from hil_mock.stamp import Stamp
     from hil_mock.stamp.clock import StampClock
 
@@ -157,12 +158,14 @@ def draw(p: Perturbation, modules: Sequence[ModuleId]) -> dict[ModuleId, ModuleD
     }
 
 
-def stamp_clock(p: Perturbation, d: ModuleDraw) -> StampClock:
-    """The :class:`~hil_mock.stamp.clock.StampClock` of a module with draws ``d``."""
+def stamp_clock(p: Perturbation, d: ModuleDraw, model: TimingModel | None = None) -> StampClock:
+    """The :class:`~hil_mock.stamp.clock.StampClock` of a module with draws ``d`` on the
+    nominal timing ``model`` (None: the estimate)."""
     from hil_mock.stamp.clock import StampClock
 
     item = None if p.item_time_us is None else round(p.item_time_us * 1000)
-    return StampClock(speed=d.speed(p.timing_scale), resonator=d.resonator, item_ns=item)
+    clock = StampClock(speed=d.speed(p.timing_scale), resonator=d.resonator, item_ns=item)
+    return clock.with_model(model)
 
 
 @dataclass
@@ -189,7 +192,7 @@ class PerturbRun:
         run.draws = draw(p, twin.order)
         for mid, stamp in twin.stamps.items():
             d = run.draws[mid]
-            stamp.set_clock(stamp_clock(p, d))
+            stamp.set_clock(stamp_clock(p, d, twin.timing))
             stamp.t = round(d.start_s * NS)  # nothing runs before power-up; lines released
         spans: dict[ModuleId, list[tuple[float, float]]] = {}
         for r in p.resets:
@@ -299,10 +302,13 @@ def serve_draws(p: Perturbation, modules: Sequence[ModuleId]) -> dict[ModuleId, 
     return draw(p, modules)
 
 
-def perturb_runner(runner: object, p: Perturbation, d: ModuleDraw) -> None:
-    """Give a served module's interpreter preview (``InterpreterRunner``) its clock and start."""
+def perturb_runner(
+    runner: object, p: Perturbation, d: ModuleDraw, model: TimingModel | None = None
+) -> None:
+    """Give a served module's interpreter preview (``InterpreterRunner``) its clock (on the
+    nominal timing ``model``) and start."""
     if hasattr(runner, "clock") and hasattr(runner, "start_s"):
-        runner.clock = stamp_clock(p, d)
+        runner.clock = stamp_clock(p, d, model)
         runner.start_s = d.start_s
 
 

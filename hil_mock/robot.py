@@ -18,6 +18,7 @@ import numpy as np
 from bstool import buildfile
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
+from bstool.timingfile import TimingModel
 from bstool.wire import announce
 from hil_mock.body import LIMP_AFTER_S, Body, ServoTrack
 from hil_mock.faults import Faults, dying_modules, failed_modules
@@ -25,6 +26,7 @@ from hil_mock.links import Links, wires
 from hil_mock.perturb import Perturbation, PerturbRun
 from hil_mock.schedule import CHUNK_STEPS, Scheduler
 from hil_mock.stamp import Stamp, StampIO
+from hil_mock.stamp.clock import NOMINAL
 from hil_mock.twin_result import NS, ModuleRecord, TwinResult, ram_reader
 
 __all__ = [
@@ -82,6 +84,8 @@ class RobotTwin(Body, Links, Faults, Scheduler):
     S^T to its neighbours (:meth:`_dies_at_pulse`, docs/twin.md); its servo then holds S^T (limp
     with ``limp_failed``). ``cut`` removes links. ``noise`` is the chance that
     a byte on a link is hit (half of the hits drop it, half flip one bit), drawn from ``seed``.
+    ``timing``: the stamps' nominal timing model (a measured ``bstool.timing/1`` file's;
+    default: the estimate), under ``perturb``'s per-module factors.
     """
 
     def __init__(
@@ -97,8 +101,10 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         seed: int = 0,
         physics: bool = True,
         perturb: Perturbation | None = None,  # issue 12 §1
+        timing: TimingModel | None = None,  # issue 13 §2: a measured timing model
     ) -> None:
         self.build = build
+        self.timing = timing
         if not 0.0 <= noise <= 1.0:
             raise InputError(f"link noise must be a probability in 0..1, got {noise}")
         self.noise = noise
@@ -128,7 +134,9 @@ class RobotTwin(Body, Links, Faults, Scheduler):
                 continue
             source = eeproms.get(mid) if eeproms is not None else None
             store = _Eeprom8(build.images(mid)) if source is None else source
-            self.stamps[mid] = Stamp(store, io=_TwinIO(self, mid), name=mid.label)
+            self.stamps[mid] = Stamp(
+                store, io=_TwinIO(self, mid), name=mid.label, clock=NOMINAL.with_model(timing)
+            )
             ram = info.ram_map
             if not ram or "state" not in ram or "tn" not in ram:
                 raise InputError(

@@ -21,6 +21,7 @@ from bstool.buildfile import Build
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from bstool.sim.timed import StampSchedule
+from bstool.timingfile import TimingModel
 from hil_mock.body import ServoTrack, robot_spec
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import RobotTwin
@@ -87,6 +88,7 @@ def extract_schedule(
     seed: int = 0,
     perturb: Perturbation | None = None,
     timeout_s: float | None = None,
+    timing: TimingModel | None = None,
 ) -> tuple[StampSchedule, TwinResult]:
     """The schedule of ``transitions`` transitions of ``build`` (and what the twin observed:
     states, periods). The options are :class:`~hil_mock.robot.RobotTwin`'s; with the same
@@ -102,6 +104,7 @@ def extract_schedule(
         noise=noise,
         seed=seed,
         perturb=perturb,
+        timing=timing,
     )
     # one more: path[T] is taken when the reference starts transition T + 1
     result = twin.run(transitions + 1, timeout_s=timeout_s)

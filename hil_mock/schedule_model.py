@@ -8,19 +8,21 @@ a :class:`bstool.sim.timed.ScheduleModel`: each module's power-up drive instant,
 instant of every transition, each module's mean offset from it and the mean period.
 Applied to any candidate's state sequence it gives that candidate's stamp-timed schedule in
 microseconds. Cached in memory per (model, period, robot, transitions, representatives,
-bstool version, templates hash).
+timing model, bstool version, templates hash): a model fitted with one ``bstool.timing/1``
+file (compiled and run with it) is never reused for another timing.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import json
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from bstool import __version__, buildfile
+from bstool import __version__, buildfile, timingfile
 from bstool.compile import templates_dir
 from bstool.compile.build import compile_loaded
 from bstool.controllers import Controller
@@ -28,6 +30,8 @@ from bstool.errors import BuildError
 from bstool.evolve.problem import Problem
 from bstool.robot import state_to_angle
 from bstool.sim.timed import ScheduleModel
+from bstool.timingfile import DEFAULT as DEFAULT_TIMING
+from bstool.timingfile import TimingModel
 from hil_mock.robot import RobotTwin
 from hil_mock.schedule import CHUNK_STEPS
 from hil_mock.twin_result import NS
@@ -59,10 +63,21 @@ def templates_hash() -> str:
     return h.hexdigest()
 
 
-def transition_instants(build: buildfile.Build, transitions: int) -> tuple[np.ndarray, int]:
+def timing_digest(timing: TimingModel | None) -> str:
+    """sha256 of a timing model's canonical JSON ("" for the estimate): its part of the key."""
+    if timing is None or timing == DEFAULT_TIMING:
+        return ""
+    text = json.dumps(timingfile.to_json(timing), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def transition_instants(
+    build: buildfile.Build, transitions: int, timing: TimingModel | None = None
+) -> tuple[np.ndarray, int]:
     """(A, T + 2) seconds: each module's first servo pulse (column 0) and the first pulse of
-    each transition 1..T+1, recorded on the twin without physics; and the reference actuator."""
-    twin = RobotTwin(build, physics=False)  # only pulse times are read: no command log
+    each transition 1..T+1, recorded on the twin without physics (its stamps on ``timing``);
+    and the reference actuator."""
+    twin = RobotTwin(build, physics=False, timing=timing)  # pulse times only: no command log
     twin.run(transitions + 1)
     rows = []
     for mid in twin.order:
@@ -101,6 +116,7 @@ def _cached(
     transitions: int,
     representatives: int,
     key: str,
+    timing: TimingModel | None,
 ) -> ScheduleModel:
     instants = []
     reference = 0
@@ -110,8 +126,10 @@ def _cached(
             ctrl = random_controller(model, seed, legs=legs, modules=modules)
             states = ctrl.k
             out = Path(tmp) / f"b{seed}"
-            res = compile_loaded(ctrl, out, period=period)  # in memory: no controller file
-            c, reference = transition_instants(buildfile.Build(out, res.manifest), transitions)
+            # in memory: no controller file
+            res = compile_loaded(ctrl, out, period=period, timing=timing)
+            build = buildfile.Build(out, res.manifest)
+            c, reference = transition_instants(build, transitions, timing)
             instants.append(c)
     return fit(instants, reference, states)
 
@@ -124,8 +142,13 @@ def schedule_model(
     modules: int = 6,
     transitions: int = FIT_TRANSITIONS,
     representatives: int = REPRESENTATIVES,
+    timing: TimingModel | None = None,
 ) -> ScheduleModel:
-    """The fitted schedule model of ``model`` at ``period`` (None: compile's default); about
-    a second per representative the first time, then from the cache."""
-    key = f"{__version__}:{templates_hash()}"
-    return _cached(model, period, legs, modules, transitions, representatives, key)
+    """The fitted schedule model of ``model`` at ``period`` (None: compile's default) for
+    stamps with ``timing`` (a measured ``bstool.timing/1`` model: the representatives are
+    compiled and run with it; None: the estimate); about a second per representative the
+    first time, then from the cache."""
+    key = f"{__version__}:{templates_hash()}:{timing_digest(timing)}"
+    if timing is not None and timing == DEFAULT_TIMING:
+        timing = None
+    return _cached(model, period, legs, modules, transitions, representatives, key, timing)

@@ -17,6 +17,7 @@ from bstool.buildfile import Build
 from bstool.controllers import Controller, load_controller
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
+from bstool.timingfile import TimingModel
 from hil_mock.check import TwinCheck, check, reference_simulator
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import CHUNK_STEPS, RobotTwin
@@ -45,6 +46,7 @@ class TwinOptions:
     video: str | Path | None = None
     progress: Callable[[int], object] | None = None  # transitions done (increments)
     perturb: Perturbation | None = None  # issue 12 §1: timing, clocks, power-up, resets
+    timing: TimingModel | None = None  # issue 13 §2: the stamps' measured timing model
 
 
 @dataclass
@@ -106,6 +108,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
             seed=options.seed,
             physics=options.physics,
             perturb=options.perturb,
+            timing=options.timing,
         )
         t0 = time.perf_counter()
         result = _run(twin, options)

@@ -267,18 +267,19 @@ def test_compile_timing_changes_the_estimates(cli: Callable[..., Any], tmp_path:
 
 
 def test_the_twin_takes_the_file(tmp_path: Path) -> None:
+    """The file's model is a value of the stamp's clock, not a process-wide setting."""
     from hil_mock import measured
     from hil_mock.stamp import timing as ht
 
     want = virtual_times(QUICK, StampClock(speed=1.8))
-    measured.use_file(_ratio_file(tmp_path, 1.8))
-    try:
-        got = virtual_times(QUICK)
-    finally:
-        measured.use(None)
+    model = measured.load(_ratio_file(tmp_path, 1.8))
+    assert model is not None
+    got = virtual_times(QUICK, StampClock(model=model))
     assert got == pytest.approx(want, abs=1e-6)
     assert (ht.BASE_NS, ht.PER_BIT_NS) == (20_000, 2_000)
+    assert ht.of(None) == ht.ESTIMATE == ht.of(tf.DEFAULT)
     assert virtual_times(QUICK) == pytest.approx(virtual_times(QUICK, StampClock()))
+    assert measured.load(None) is None
 
 
 def test_twin_timing_runs(

@@ -248,3 +248,66 @@ def test_report_stamp_timed_runs_every_experiment_on_the_schedule(cli, tmp_path:
     assert entry["faults"]["runs"][0]["failed"] == [str(failed)]
     assert entry["faults"]["runs"][0]["distance"] == pytest.approx(dead.distance, abs=1e-12)
     assert "stamp-timed" in (tmp_path / "rep" / "index.html").read_text()
+
+
+# ---- issue 13 §2: a timing file in the schedule model's key and in the run's settings ------
+
+
+def _timing_file(tmp: Path, ratio: float) -> Path:
+    from dataclasses import replace
+
+    from bstool import timingfile as tf
+
+    c = tf.DEFAULT
+    model = replace(c, base_us=tf.Coefficient(c.base_us.value * ratio),
+                    per_bit_us=tf.Coefficient(c.per_bit_us.value * ratio),
+                    instruction_time_ratio=tf.Coefficient(ratio), source="test")  # fmt: skip
+    path = tmp / f"timing-{ratio}.json"
+    tf.dump(model, path)
+    return path
+
+
+def test_the_schedule_models_key_holds_the_timing(monkeypatch, tmp_path: Path) -> None:
+    from bstool import timingfile as tf
+    from hil_mock import schedule_model as sm
+
+    seen: list[tuple[str, object]] = []
+    monkeypatch.setattr(sm, "_cached", lambda *args: seen.append((args[-2], args[-1])))
+    slow = tf.load(_timing_file(tmp_path, 1.8))
+    for timing in (None, tf.DEFAULT, slow):
+        sm.schedule_model("ca1d", timing=timing)
+    (k0, t0), (k1, t1), (k2, t2) = seen
+    assert k0 == k1 and t0 is None and t1 is None  # the default model is the estimate
+    assert k2 != k0 and k2.endswith(sm.timing_digest(slow)) and t2 == slow
+    assert sm.timing_digest(tf.load(_timing_file(tmp_path, 1.7))) != sm.timing_digest(slow)
+
+
+def test_evolve_records_the_timing_file(tmp_path: Path) -> None:
+    """--timing F: F's sha256 in the checkpoint and in best.json's ga; a resumed run gets the
+    same file (given again or found where it was), another one is refused."""
+    import hashlib
+
+    from bstool.evolve import driver
+    from bstool.evolve.engine import GAParams
+
+    f = _timing_file(tmp_path, 1.8)
+    params = GAParams(pop=2, gens=1, transitions=2, seed=1)
+    with pytest.raises(InputError, match="--timing only applies"):
+        driver.plan_new("ca1d", params, timing=f)
+    k, a = 16, 30
+    model = ScheduleModel(0.01, np.full(a, 0.02), np.array([0.0, 0.3, 0.8]),
+                          np.zeros(a), 0.48, 0,
+                          np.asarray(state_to_angle(np.arange(k), k)))  # fmt: skip
+    out = tmp_path / "run"
+    plan = driver.plan_new("ca1d", params, out=out, stamp_timed=True, timing=f)
+    driver.execute(plan, workers=1, schedule_model=model)
+    want = {"file": str(f), "sha256": hashlib.sha256(f.read_bytes()).hexdigest()}
+    best = fileio.read_json(out / "best.json")
+    assert best["ga"]["timing"] == want and best["ga"]["stamp_timed"] is True
+    assert driver.plan_resume(out, {}).timing_file == str(f)
+    other = _timing_file(tmp_path, 1.7)
+    with pytest.raises(InputError, match="not the timing file"):
+        driver.plan_resume(out, {"timing": str(other)})
+    f.unlink()
+    with pytest.raises(InputError, match="was evolved with the timing file"):
+        driver.plan_resume(out, {})

@@ -97,6 +97,12 @@ _D = opt.default
     help="--stamp-timed: the period the controller will be compiled with (default: compile's).",
 )
 @click.option(
+    "--timing",
+    type=click.Path(dir_okay=False),
+    help="--stamp-timed: the stamps' measured timing (a bstool.timing/1 file from bstool probe);"
+    " its sha256 is recorded with the run.",
+)
+@click.option(
     "--robust",
     type=click.Choice(ROBUST_MODES),
     is_flag=False,
@@ -148,7 +154,7 @@ def command(
         if force:
             raise InputError("--force only applies to a new run (--out DIR)")
         given.pop("period", None)
-        plan = plan_resume(resume, {**given, "model": model})
+        plan = plan_resume(resume, {**given, "model": model})  # --timing: checked by sha256
     else:
         model = opt.check_model(model)
         if out is None:
@@ -156,8 +162,10 @@ def command(
         fitness = given.pop("fitness", opt.default("fitness"))
         stamp_timed = bool(given.pop("stamp_timed", False))
         period = given.pop("period", None)
+        timing = given.pop("timing", None)
         plan = plan_new(model, opt.ga_params(model, **given), fitness=fitness, out=out,
-                        force=force, stamp_timed=stamp_timed, period=period)  # fmt: skip
+                        force=force, stamp_timed=stamp_timed, period=period,
+                        timing=timing)  # fmt: skip
     _run(plan, workers, cluster, quiet)
 
 
@@ -198,6 +206,7 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
 
     schedule = None
     if plan.stamp_timed:
+        from bstool import timingfile
         from hil_mock.schedule_model import schedule_model
 
         schedule = schedule_model(
@@ -205,6 +214,7 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
             period=plan.period,
             legs=state.problem.legs,
             modules=state.problem.modules,
+            timing=None if plan.timing_file is None else timingfile.load(plan.timing_file),
         )
     try:
         result = execute(

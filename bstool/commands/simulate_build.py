@@ -56,11 +56,8 @@ def run_build(
     transitions = len(states) - 1
     if transitions < 1:
         raise InputError("--build needs at least one transition", hint="give -T 1 or more")
-    measured.use_file(timing_file)
-    try:
-        result, schedule, twin = simulate_build(build, transitions, failed=failed)
-    finally:
-        measured.use(None)
+    timing = measured.load(timing_file)
+    result, schedule, twin = simulate_build(build, transitions, failed=failed, timing=timing)
     seen = twin.state_array(build.legs, build.modules, transitions)
     period = np.diff(schedule.samples)
     return result, {

@@ -123,8 +123,10 @@ def command(
     from tqdm import tqdm
 
     from bstool import buildfile
+    from hil_mock import measured
     from hil_mock.session import TwinOptions, run_twin
 
+    timing = measured.load(timing_file)  # issue 13 §2: the measured timing model
     b = buildfile.load(build)  # refuses a build whose images differ from the manifest
     fail_ids = [parse_module(f, b.legs, b.modules) for f in failed]
     die_at = dict(parse_failure_time(d, b.legs, b.modules) for d in die)
@@ -146,14 +148,9 @@ def command(
             video=video,
             progress=bar.update,
             perturb=perturb,
+            timing=timing,
         )
-        from hil_mock import measured  # issue 13 §2: the measured timing model, for this run
-
-        measured.use_file(timing_file)
-        try:
-            run = run_twin(b, options)
-        finally:
-            measured.use(None)
+        run = run_twin(b, options)
     report, result = run.check, run.result
     if as_json:
         out = report.to_json()

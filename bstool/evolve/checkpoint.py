@@ -14,6 +14,7 @@ import io
 import json
 import os
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -74,11 +75,19 @@ def read_history(path: str | os.PathLike[str]) -> list[HistoryRow]:
 def save_outputs(state: RunState, out: str | os.PathLike[str], extra: dict[str, Any]) -> None:
     """best.json and history.csv, then the checkpoint (each atomic)."""
     d = Path(out)
-    best = state.best_controller()
+    best = state.best_controller(evaluation_settings(extra))
     if best is not None:
         save_controller(best, d / BEST)
     fileio.write_text(d / HISTORY, history_csv(state.history))
     save_checkpoint(state, d / CHECKPOINT, extra)
+
+
+EVALUATION_KEYS = ("stamp_timed", "period", "timing")
+"""The run's evaluation settings (``extra``) that best.json's ``ga`` also records."""
+
+
+def evaluation_settings(extra: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: extra[k] for k in EVALUATION_KEYS if k in extra}
 
 
 def save_checkpoint(state: RunState, path: Path, extra: dict[str, Any]) -> None:

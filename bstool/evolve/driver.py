@@ -118,6 +118,9 @@ class Plan:
     fresh: bool  # a new run: save once before the first generation
     replace: bool = False  # the folder exists with other content (--force): swap it whole
     saved_step: int | None = None  # the step the folder's checkpoint holds (None: not yet)
+    timing_file: str | None = None
+    """``--timing`` of a stamp-timed run: the bstool.timing/1 file to fit the schedule model
+    with (its sha256 is in ``extra["timing"]``; None: the timing estimate)."""
 
     @property
     def fitness(self) -> str:
@@ -169,25 +172,30 @@ def plan_new(
     force: bool = False,
     stamp_timed: bool = False,
     period: float | None = None,
+    timing: str | os.PathLike[str] | None = None,
 ) -> Plan:
     kind = opt.check_fitness(fitness)
     extra: dict[str, Any] = {"fitness": kind}
-    extra.update(opt.stamp_timed_settings(kind, stamp_timed, period))
+    extra.update(opt.stamp_timed_settings(kind, stamp_timed, period, timing))
     directory, replace = (None, False) if out is None else check_out(out, force=force)
     problem = Problem(opt.check_model(model), transitions=params.transitions)
-    return Plan(new_run(problem, params), extra, directory, True, replace)
+    file = None if timing is None else str(timing)
+    return Plan(new_run(problem, params), extra, directory, True, replace, timing_file=file)
 
 
 def plan_resume(directory: str | os.PathLike[str], given: Mapping[str, Any]) -> Plan:
     """Load the run in ``directory``, check ``given`` against it, remove what a killed writer
     left there (temporaries of best.json, history.csv, the checkpoint, a swapped folder)."""
     state, extra = load_checkpoint(directory)
+    given = dict(given)
+    timing = given.pop("timing", None)
     opt.check_resume(state, extra, directory, given)
+    timing_file = opt.resume_timing(extra, timing, directory)
     d = Path(directory)
     for name in (BEST, HISTORY, CHECKPOINT):
         outputs.clean_stale(d / name)
     outputs.clean_stale(d)
-    return Plan(state, extra, d, False, saved_step=state.step)
+    return Plan(state, extra, d, False, saved_step=state.step, timing_file=timing_file)
 
 
 def factory_for(
@@ -326,12 +334,14 @@ def evolve(
     stamp_timed: bool = False,
     period: float | None = None,
     schedule_model: ScheduleModel | None = None,
+    timing: str | os.PathLike[str] | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
 
-    ``stamp_timed=True`` (``--stamp-timed``, ``period`` = ``--period``) needs the
-    ``schedule_model`` of ``model`` at that period
-    (``hil_mock.schedule_model.schedule_model(model, period=period)``).
+    ``stamp_timed=True`` (``--stamp-timed``, ``period`` = ``--period``, ``timing`` =
+    ``--timing``, a bstool.timing/1 file recorded by sha256) needs the ``schedule_model`` of
+    ``model`` at that period and timing (``hil_mock.schedule_model.schedule_model(model,
+    period=period, timing=bstool.timingfile.load(timing))``).
 
     ``None`` means the default (docs/evolution.md; a random seed is drawn and recorded).
     ``out`` is the run folder (best.json, history.csv, checkpoint after every generation); with
@@ -357,7 +367,7 @@ def evolve(
     opt.check_workers(workers)
     plan = plan_new(
         model, params, fitness=fitness, out=out, force=force, stamp_timed=stamp_timed,
-        period=period,
+        period=period, timing=timing,
     )  # fmt: skip
     return execute(
         plan,

@@ -8,7 +8,7 @@ cache, so a resumed run repeats exactly what an uninterrupted one would do.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -126,7 +126,9 @@ class RunState:
         """history.csv's population column: "host" for a fault co-evolution's main population."""
         return "host" if name == "main" and self.params.coevolve_faults else name
 
-    def best_controller(self) -> Controller | None:
+    def best_controller(self, evaluation: Mapping[str, Any] | None = None) -> Controller | None:
+        """The best candidate as a controller; ``evaluation``: how it was evaluated
+        (``--stamp-timed``, its period and timing file), added to its ``ga`` settings."""
         if self.best_row is None:
             return None
         return self.problem.controller(
@@ -135,7 +137,7 @@ class RunState:
             self.best_partner,
             fitness=self.best_fitness,
             max_trans=self.params.transitions,
-            ga=self.params.to_json(),
+            ga={**self.params.to_json(), **(evaluation or {})},
             seed=self.params.seed,
         )
 

@@ -9,9 +9,11 @@ the Python API (``parasite_k=``).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import os
 import secrets
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from bstool.controllers.reference import MODELS
@@ -168,11 +170,18 @@ def ga_params(
     )
 
 
-def stamp_timed_settings(kind: str, stamp_timed: bool, period: Any) -> dict[str, Any]:
-    """What a run saves for ``--stamp-timed`` / ``--period`` (nothing without them)."""
+def stamp_timed_settings(
+    kind: str, stamp_timed: bool, period: Any, timing: Any = None
+) -> dict[str, Any]:
+    """What a run saves for ``--stamp-timed`` / ``--period`` / ``--timing`` (nothing without
+    them). ``timing``: a ``bstool.timing/1`` file; the run records its name and sha256 (a
+    resumed run must be given the same file)."""
     if not stamp_timed:
-        if period is not None:
-            raise InputError("--period only applies with --stamp-timed", hint="add --stamp-timed")
+        for name, value in (("period", period), ("timing", timing)):
+            if value is not None:
+                raise InputError(
+                    f"--{name} only applies with --stamp-timed", hint="add --stamp-timed"
+                )
         return {}
     if kind != "physics":
         raise InputError(
@@ -183,7 +192,50 @@ def stamp_timed_settings(kind: str, stamp_timed: bool, period: Any) -> dict[str,
         isinstance(period, bool) or not isinstance(period, int | float) or not period > 0
     ):
         raise InputError(f"--period must be a positive number of seconds, got {period!r}")
-    return {"stamp_timed": True, "period": None if period is None else float(period)}
+    out: dict[str, Any] = {"stamp_timed": True, "period": None if period is None else float(period)}
+    if timing is not None:
+        out["timing"] = timing_record(timing)
+    return out
+
+
+def timing_record(path: str | os.PathLike[str]) -> dict[str, str]:
+    """A timing file's name and sha256 (read and checked: a bad file fails before any work)."""
+    from bstool import timingfile
+
+    timingfile.load(path)
+    try:
+        digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError as exc:
+        raise InputError(f"cannot read timing file {path}: {exc.strerror}") from None
+    return {"file": str(path), "sha256": digest}
+
+
+def resume_timing(
+    extra: Mapping[str, Any], timing: Any, directory: str | os.PathLike[str]
+) -> str | None:
+    """The timing file a resumed run uses: ``timing`` if given, else the one it was started
+    with; either must have the sha256 the run recorded (None: the run has none)."""
+    saved = extra.get("timing")
+    if saved is None:
+        if timing is not None:
+            raise InputError(f"the run in {directory} was started without --timing",
+                             hint="a resumed run keeps its settings")  # fmt: skip
+        return None
+    path = str(saved["file"] if timing is None else timing)
+    try:
+        given = timing_record(path)
+    except InputError as exc:
+        raise InputError(
+            f"the run in {directory} was evolved with the timing file {saved['file']}: {exc}",
+            hint="give that file with --timing F",
+        ) from None
+    if given["sha256"] != saved["sha256"]:
+        raise InputError(
+            f"{path} is not the timing file the run in {directory} was started with "
+            f"(sha256 {given['sha256'][:12]}..., not {saved['sha256'][:12]}...)",
+            hint="a resumed run keeps its settings; give the same file with --timing F",
+        )
+    return path
 
 
 def check_workers(workers: Any) -> int | None:

@@ -22,9 +22,10 @@ budget: :data:`UART_TOLERANCE` (an estimate) is the mismatch it accepts.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
+from bstool.timingfile import DEFAULT, TimingModel
 from bstool.tokenizer import tokens as T
 
 from . import timing
@@ -43,27 +44,29 @@ def frame_received(tx_bit_ns: float, rx_bit_ns: float, tolerance: float = UART_T
     return abs(rx_bit_ns / tx_bit_ns - 1.0) <= tolerance
 
 
-def _instruction_table(speed: float) -> tuple[int, ...]:
-    return _table(speed, timing.BASE_NS, timing.PER_BIT_NS)  # issue 13 §2: the model in use
-
-
 @lru_cache(maxsize=256)
 def _table(speed: float, base_ns: int, per_bit_ns: int) -> tuple[int, ...]:
     """Statement cost by token bits (0..16384) at ``speed`` (shared by stamps of one speed)."""
     if speed == 1.0:
-        return tuple(timing.instruction_ns(b) for b in range(CODE_BITS + 1))
-    return tuple(round(timing.instruction_ns(b) * speed) for b in range(CODE_BITS + 1))
+        return tuple(base_ns + per_bit_ns * b for b in range(CODE_BITS + 1))
+    return tuple(round((base_ns + per_bit_ns * b) * speed) for b in range(CODE_BITS + 1))
 
 
 @dataclass(frozen=True)
 class StampClock:
-    """Per-stamp timing factors (1.0 = the nominal timing model) and the serial item time."""
+    """Per-stamp timing factors (1.0 = the nominal timing model), the serial item time and the
+    nominal timing model itself (issue 13 §2: a measured ``bstool.timing/1`` file's, passed in;
+    default: the estimate of :mod:`.timing`)."""
 
     speed: float = 1.0
     resonator: float = 1.0
     item_ns: int | None = None
     """Nominal time between two SERIN/SEROUT items (× ``speed``); None: today's ideal serial
     timing (bytes back to back, the receiver listens again at the end of the stop bit)."""
+    model: TimingModel = DEFAULT
+    """The nominal coefficients (:func:`.timing.of`): statement cost, RUN, PAUSE, PULSOUT and
+    SERIN-timeout units."""
+    coefficients: timing.StampTiming = field(init=False, repr=False, compare=False)
     instruction: tuple[int, ...] = field(init=False, repr=False, compare=False)
     pause_ns: int = field(init=False, repr=False, compare=False)
     pulsout_ns: float = field(init=False, repr=False, compare=False)
@@ -73,18 +76,30 @@ class StampClock:
         if not (self.speed > 0 and self.resonator > 0):
             raise ValueError("clock factors must be positive")
         r = self.resonator
-        object.__setattr__(self, "instruction", _instruction_table(float(self.speed)))
-        object.__setattr__(self, "pause_ns", round(timing.PAUSE_UNIT_NS * r))
-        object.__setattr__(self, "pulsout_ns", timing.PULSOUT_UNIT_NS * r)
-        object.__setattr__(self, "serin_unit_ns", timing.SERIN_TIMEOUT_UNIT_NS * r)
+        c = timing.of(self.model)
+        object.__setattr__(self, "coefficients", c)
+        object.__setattr__(self, "instruction", _table(float(self.speed), c.base_ns, c.per_bit_ns))
+        object.__setattr__(self, "pause_ns", round(c.pause_ns * r))
+        object.__setattr__(self, "pulsout_ns", c.pulsout_ns * r)
+        object.__setattr__(self, "serin_unit_ns", c.serin_ns * r)
 
     @property
     def nominal(self) -> bool:
+        """Factors 1 and ideal serial timing (the timing model may still be a measured one)."""
         return self.speed == 1.0 and self.resonator == 1.0 and self.item_ns is None
 
     def overhead_ns(self, nominal_ns: int) -> int:
-        """A fixed overhead of the timing model (RUN) on this stamp."""
+        """A fixed overhead of the timing model on this stamp."""
         return nominal_ns if self.speed == 1.0 else round(nominal_ns * self.speed)
+
+    @property
+    def run_ns(self) -> int:
+        """RUN into another slot, on top of its statement."""
+        return self.overhead_ns(self.coefficients.run_ns)
+
+    def with_model(self, model: TimingModel | None) -> StampClock:
+        """This clock with another nominal timing model (None: the estimate)."""
+        return replace(self, model=DEFAULT if model is None else model)
 
     def pulse_ns(self, units: int) -> int:
         return round(units * self.pulsout_ns)

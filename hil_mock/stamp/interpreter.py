@@ -101,7 +101,7 @@ class Stamp:
         self.event = False  # set when a serial byte went out (run_until returns)
         self.rx_missed = 0  # bytes offered while not listening on that pin (no receive buffer)
         self.rx_mismatched = 0  # bytes lost to a bit-time mismatch beyond the UART's tolerance
-        self.set_clock(clock or StampClock())  # issue 13 §2: the timing model in use
+        self.set_clock(clock or StampClock())  # issue 13 §2: its timing model is the clock's
         self.reset()
 
     def set_clock(self, clock: StampClock) -> None:
@@ -286,7 +286,7 @@ class Stamp:
         return returns[ident]
 
     def _run(self, slot: int) -> int:
-        self.t += self.clock.overhead_ns(timing.RUN_NS)
+        self.t += self.clock.run_ns
         self._enter_slot(slot & 7)
         self.brk = True
         return self.pc

@@ -16,6 +16,9 @@ Sources and reasoning (docs/twin.md, "Timing model"):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+from bstool.timingfile import TimingModel
 from bstool.tokenizer import tokens as T
 
 BASE_NS = 20_000
@@ -40,14 +43,39 @@ def byte_ns(mode: int) -> int:
 
 
 # ---- issue 13 §2: measured coefficients (a bstool.timing/1 file) replace the estimate ------
-ESTIMATE = (BASE_NS, PER_BIT_NS, RUN_NS, PAUSE_UNIT_NS, PULSOUT_UNIT_NS, SERIN_TIMEOUT_UNIT_NS)
 
 
-def use_model(
-    base_ns: int, per_bit_ns: int, run_ns: int, pause_ns: int, pulsout_ns: int, serin_ns: int
-) -> None:
-    """Make these the nominal coefficients of every clock made afterwards (hil_mock.measured;
-    ``use_model(*ESTIMATE)`` restores the estimate)."""
-    global BASE_NS, PER_BIT_NS, RUN_NS, PAUSE_UNIT_NS, PULSOUT_UNIT_NS, SERIN_TIMEOUT_UNIT_NS
-    BASE_NS, PER_BIT_NS, RUN_NS = base_ns, per_bit_ns, run_ns
-    PAUSE_UNIT_NS, PULSOUT_UNIT_NS, SERIN_TIMEOUT_UNIT_NS = pause_ns, pulsout_ns, serin_ns
+@dataclass(frozen=True)
+class StampTiming:
+    """The nominal coefficients a :class:`~hil_mock.stamp.clock.StampClock` scales, in integer
+    ns (defaults: the estimate above); :func:`of` makes them from a measured timing model."""
+
+    base_ns: int = BASE_NS
+    per_bit_ns: int = PER_BIT_NS
+    run_ns: int = RUN_NS
+    pause_ns: int = PAUSE_UNIT_NS
+    pulsout_ns: int = PULSOUT_UNIT_NS
+    serin_ns: int = SERIN_TIMEOUT_UNIT_NS
+
+    def instruction_ns(self, bits: int) -> int:
+        return self.base_ns + self.per_bit_ns * bits
+
+
+ESTIMATE = StampTiming()
+
+
+def of(model: TimingModel | None) -> StampTiming:
+    """The twin's coefficients of ``model`` (None or the default model: :data:`ESTIMATE`): the
+    statement cost ``base + per_bit x token bits``, RUN, and the PAUSE, PULSOUT and SERIN-timeout
+    units. Serial bit times stay the baudmode's (the file's SEROUT item time is reported, not
+    applied: a stamp's UART follows its resonator, which the units already carry)."""
+    if model is None:
+        return ESTIMATE
+    return StampTiming(
+        round(model.base_us.value * 1000),
+        round(model.per_bit_us.value * 1000),
+        round(model.run_us.value * 1000),
+        round(model.pause_unit_ms.value * 1_000_000),
+        round(model.pulsout_unit_us.value * 1000),
+        round(model.serin_unit_ms.value * 1_000_000),
+    )
