@@ -18,13 +18,13 @@ from bstool.compile.plan import ModulePlan, build_plans, estimates, period_ms
 from bstool.compile.render import render_module
 from bstool.compile.results import ModuleResult, SlotResult
 from bstool.compile.timing import measured
-from bstool.wire.link import CA_TRY_MIN_MS
 from bstool.compile.wiring import wiring as wiring_md
 from bstool.controllers import Controller, controller_hash, load_controller
 from bstool.errors import BstoolError, BuildError, InputError, SourceError
 from bstool.moduleid import ModuleId, parse_module
 from bstool.timingfile import TimingModel
 from bstool.tokenizer import Project, tokenize_source
+from bstool.wire.link import CA_TRY_MIN_MS
 
 SLOT_BYTES = buildfile.SLOT_BYTES
 RAM_BYTES = describe.RAM_BYTES

@@ -8,7 +8,6 @@ are the Python mirror used by the tests, the test vectors and the twin.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 BAUD = 4800
