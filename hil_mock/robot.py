@@ -212,8 +212,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         reference module, to close the last path point), or ``timeout_s`` of virtual time."""
         if self.reference is None:
             raise InputError("every module failed: nothing runs")
-        period = self.build.period
-        limit = timeout_s if timeout_s is not None else (transitions + 3) * period * 3 + 1.0
+        limit = timeout_s if timeout_s is not None else self.stall_limit_s(transitions)
         limit_ns = int(limit * NS)
         chunk_ns = CHUNK_STEPS * self.dt_ns
         ref = self.records[self.reference]
@@ -237,6 +236,21 @@ class RobotTwin(Body, Links, Faults, Scheduler):
             if done >= transitions + 1 and (self.sim is None or len(ref.states) >= transitions + 2):
                 break
         return self._result(transitions)
+
+    def stall_limit_s(self, transitions: int) -> float:
+        """Virtual seconds after which a run that has not made ``transitions`` counts as
+        stalled: three times the nominal period (the build's, or the manifest's estimate if
+        longer) per transition, times the slowest stamp's timing factor, after the latest
+        power-up and every outage (the NN relay at timing scale 3 takes ~2 s a transition)."""
+        estimate = max(
+            (m.timing.nominal_transition_s for m in self.build.manifest.modules), default=0.0
+        )
+        period = max(self.build.period, estimate)
+        p, draws = self.perturb.perturbation, self.perturb.draws.values()
+        slow = max([1.0, *(d.speed(p.timing_scale) for d in draws)])
+        start = max([0.0, *(d.start_s for d in draws)])
+        outages = sum(r.off_s for r in p.resets)
+        return (transitions + 3) * period * 3 * slow + start + outages + 1.0
 
     def _result(self, transitions: int) -> TwinResult:
         states: dict[ModuleId, list[int]] = {}
