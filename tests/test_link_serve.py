@@ -10,8 +10,6 @@ xfails. No physics, T = 6.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 

@@ -152,6 +152,7 @@ def frames() -> dict[str, object]:
         ("a JOIN with one byte lost", "ca", 0, "B8"),
         ("TOOK is not a CA frame", "ca", 2, "9A"),
     ]
+    relay = frame("REQ", 6, [4, 11, 7], nn=True)
     bad_welcome = frame("WELCOME", 4, [3, 9, 8, 2, 1, 5], nn=False)
     assert bad_welcome.hex(" ").upper() == rejected[5][3]
     return {
@@ -205,9 +206,9 @@ def frames() -> dict[str, object]:
                 "takes them (TOOK), the master shows S^7, and once the slave shows it too its "
                 "answer to the next REQ(6) is REP(6) (§4.6).",
                 "steps": [
-                    {"from": "2.2", "to": "2.3", "bytes": _hex(frame("REQ", 6, [4, 11, 7], nn=True))},
+                    {"from": "2.2", "to": "2.3", "bytes": _hex(relay)},
                     {"from": "2.3", "to": "2.2", "bytes": _hex(frame("TOOK", 6, [], nn=True))},
-                    {"from": "2.2", "to": "2.3", "bytes": _hex(frame("REQ", 6, [4, 11, 7], nn=True))},
+                    {"from": "2.2", "to": "2.3", "bytes": _hex(relay)},
                     {"from": "2.3", "to": "2.2", "bytes": _hex(frame("REP", 6, [], nn=True))},
                 ],
             },
