@@ -241,7 +241,9 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         """Virtual seconds after which a run that has not made ``transitions`` counts as
         stalled: three times the nominal period (the build's, or the manifest's estimate if
         longer) per transition, times the slowest stamp's timing factor, after the latest
-        power-up and every outage (the NN relay at timing scale 3 takes ~2 s a transition)."""
+        power-up and every outage, plus twice the power-up window (a neighbour dead from
+        power-up is waited for that long, counted in lower bounds of tries), so the NN relay
+        at timing scale 3 (~2 s a transition) still completes."""
         estimate = max(
             (m.timing.nominal_transition_s for m in self.build.manifest.modules), default=0.0
         )
@@ -250,7 +252,8 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         slow = max([1.0, *(d.speed(p.timing_scale) for d in draws)])
         start = max([0.0, *(d.start_s for d in draws)])
         outages = sum(r.off_s for r in p.resets)
-        return (transitions + 3) * period * 3 * slow + start + outages + 1.0
+        window = self.build.manifest.link.power_up_window_ms / 1000
+        return (transitions + 3) * period * 3 * slow + start + outages + 2 * window * slow + 1.0
 
     def _result(self, transitions: int) -> TwinResult:
         states: dict[ModuleId, list[int]] = {}

@@ -136,7 +136,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
             + ", ".join(m.label for m in limited)
             + ") are compared with the compiled programs' emulation: they cannot hear the modules"
             " before the pair and stop where they are (the documented"
-            ' limit, docs/compile.md "Two neighbours dying one after the other")'
+            ' limit, docs/compile.md "Checking exactness")'
         )
     return TwinReport(
         build,

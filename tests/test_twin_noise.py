@@ -2,7 +2,8 @@
 
 Nothing of the serve loop is given up on: a lost or damaged byte costs a retry, never a
 neighbour's state (protocol/link.md §4.2). Figures for other
-noise levels and seeds: docs/compile.md "Link noise".
+noise levels and seeds (the old protocol): docs/compile.md "Link noise"; the serve loop under
+noise: docs/link-redesign.md §5.
 """
 
 from __future__ import annotations
