@@ -157,11 +157,17 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         servo.target = servo.angle_of(units)
         rec = self.records[mid]
         stamp = self.stamps[mid]
-        if not rec.states:  # the first pulse holds R^0
+        if not rec.states:  # the first pulse holds R^0 ...
             state_of, tn_of = self._readers[mid]
+            tn = tn_of(stamp)
+            if 0 < tn <= 7:  # ... unless it joined a robot that had moved on (no JOIN answered
+                # in time: it took the first REQ(h)); it held R^0, unshown, until transition tn
+                r0 = int(self.build.module(mid).initial_state)
+                rec.states += [r0] * tn
+                rec.times_ns += [start_ns] * tn
             rec.states.append(state_of(stamp))
             rec.times_ns.append(start_ns)
-            rec.last_tn = tn_of(stamp)
+            rec.last_tn = tn
         else:  # a transition's time is the first pulse of its new state
             self._observe(mid, stamp)
         if self._dies_at_pulse(mid, stamp, after=True):

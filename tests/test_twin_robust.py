@@ -34,7 +34,7 @@ CASES: dict[str, tuple[Perturbation, float]] = {
     "clock spread ±2 %": (Perturbation(clock_spread=0.02, seed=1), 0.0),
     "item time 150 us": (Perturbation(item_time_us=150.0), 0.0),
     "start spread 3 s": (Perturbation(start_spread=3.0, seed=1), 0.0),
-    "reset lead 0.0": (Perturbation(), 0.0),  # the reset is placed after the roll call below
+    "reset lead 0.0": (Perturbation(), 0.0),  # the reset is placed after the first transition
     "reset middle 2.3": (Perturbation(), 0.0),
     "noise 1 %": (Perturbation(seed=1), 0.01),
     "combined + noise 1 %": (
