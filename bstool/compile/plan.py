@@ -238,7 +238,7 @@ def _longest_gap_ms(plan: ModulePlan) -> float:
         if ll.master:
             gaps.append(timing.master_gap_ms(0.0, ll.tx_payload, ll.rx_payload, k, nn=nn))
         else:
-            gaps.append(timing.slave_receive_gap_ms(ll.rx_payload, k))
+            gaps.append(timing.slave_receive_gap_ms(ll.rx_payload, k, nn=nn))
     return max(gaps)
 
 

@@ -39,6 +39,14 @@ END_STATEMENTS = 12
 NN_MEETINGS = 3
 """NN: the meetings on a transition's critical path at one module: the upstream's REQ heard,
 the downstream's TOOK and its REP (protocol/link.md §4.6)."""
+GAP_STATEMENTS = 20
+"""The statements between tries that the try counts above leave out (the tick bookkeeping every
+16 rounds, jumps between wires); calibrated on the twin's interpreter (CA: 23-24 ms measured
+against 22.7 ms without them)."""
+NN_TAKE_STATEMENTS = 25
+"""NN: a slave between a REQ's payload and the pulse before its TOOK: the stores, the NnTable
+lookup and the relay set-up (GOSUB Take); calibrated on the twin (40 ms measured on the last
+module of a leg)."""
 NN_CHUNK = 3
 """NN: a REQ is sent in SEROUTs of this many bytes with a servo pulse between them."""
 
@@ -90,13 +98,14 @@ def listen_ms(pulse_ms: float, k: ServeConstants, *, jitter: float) -> float:
     return pulse_ms + _wait_ms(k.listen, k, jitter) + TRY_STATEMENTS * STMT_MS
 
 
-def slave_receive_gap_ms(rx: int, k: ServeConstants) -> float:
+def slave_receive_gap_ms(rx: int, k: ServeConstants, *, nn: bool) -> float:
     """A slave's longest time between its try's pulse and the pulse before its reply: a request
     starting at the end of the longest listen, received whole (the payload at the pace)."""
+    take = NN_TAKE_STATEMENTS if nn else 0
     return (
         _wait_ms(k.listen, k, k.jitter_units)
         + frame_ms(1 + rx, k)
-        + (TRY_STATEMENTS + TURNAROUND_STATEMENTS + 2 * rx) * STMT_MS
+        + (TRY_STATEMENTS + TURNAROUND_STATEMENTS + 2 * rx + take + GAP_STATEMENTS) * STMT_MS
     )
 
 
@@ -109,7 +118,7 @@ def master_gap_ms(pulse_ms: float, tx: int, rx: int, k: ServeConstants, *, nn: b
         frame_ms(first, k)
         + _wait_ms(k.reply_wait, k, k.jitter_units)
         + frame_ms(1 + rx, k)
-        + 2 * TRY_STATEMENTS * STMT_MS
+        + (2 * TRY_STATEMENTS + GAP_STATEMENTS) * STMT_MS
     )
 
 
