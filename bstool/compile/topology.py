@@ -112,7 +112,7 @@ def links(model: str, legs: int, modules: int) -> list[Link]:
     colours: dict[tuple[ModuleId, ModuleId], int] = {}
     used: dict[ModuleId, set[int]] = {}
     for a, b in sorted(pairs):
-        if model in NN_MODELS:  # chain j-1 -> j: j-1; bypass j-1 -> j+1: j+1 (the serve round's order)
+        if model in NN_MODELS:  # chain j-1 -> j: j-1; bypass j-1 -> j+1: j+1 (round order)
             colour = a.module if b.module == a.module + 1 else b.module
         else:  # greedy: the smallest colour free at both ends
             taken = used.get(a, set()) | used.get(b, set())
