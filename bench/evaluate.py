@@ -12,7 +12,7 @@ Prints, for a population of --pop candidates (default 100) of the default robot:
 * the state-sequence generation rate (population sequences/s) for a CA and an NN model;
 * ``--stamp-timed`` evaluation (``bstool evolve --stamp-timed``): evaluations/s beside the plain
   physics of the same population in the same rounds, their ratio, the seconds of physics each
-  run needs (the twin's roll call and 0.48 s period against a 0.475 s settle and period), the
+  run needs (the twin's start-up and period against a 0.475 s settle and period), the
   schedule model's fitting time (one compile + twin run per representative, cached) and its
   schedule computation rate (schedules/s).
 

@@ -17,7 +17,7 @@ transition period (s) and the longest servo gap (ms; the reset module's own outa
 sums the exact modules over the runs, averages the periods and takes the longest gap.
 ``--quick`` runs a smoke subset (two models, eight cases, T = 8); ``--noise-on-top`` adds every
 case without noise once more with 1 % byte noise (the issue: "alone and combined, with 1 % byte
-noise on top"). Every reset here is shorter than the dead-limit (1 s, docs/link-redesign.md), so
+noise on top"). Every reset here is shorter than the dead-limit (1.5 s, protocol/link.md §4.5), so
 the healthy reference is the one a protocol that survives resets must give; a longer outage is
 compared with ``controller.states(T, failed_at=..., rejoin=...)`` (docs/controllers.md).
 """
@@ -40,7 +40,7 @@ from bstool.controllers import load_controller
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
 
-RESET_AT_S = 5.0  # after every model's roll call (first transitions at 2.4-3.7 s)
+RESET_AT_S = 5.0  # well after the first transitions (the join; about 0.5 s unperturbed)
 NOISE = 0.01
 
 

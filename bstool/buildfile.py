@@ -61,19 +61,21 @@ class RobotSize:
 
 @dataclass(frozen=True)
 class LinkSettings:
-    """The link's serial settings and frame constants (bstool.wire.link, protocol/link.md)."""
+    """The link's serial settings and the serve loop's constants (bstool.wire.link,
+    protocol/link.md §5); the SERIN waits in 0.4 ms units, each plus 0..``jitter_units``."""
 
     protocol: str
     baud: int
     baudmode: int
-    request_base: int
-    reply_base: int
-    reply_base_units: int
-    recover_units: int
-    linger_units: int
-    linger_listens: int
-    silent_transitions: int
-    reply_next_dead_base: int | None = None  # NN: a reply saying "my next module is dead"
+    pace_ms: int
+    hold_frames: int
+    listen_units: int
+    reply_wait_units: int
+    payload_wait_units: int
+    jitter_units: int
+    keepalive_rounds: int
+    dead_limit_ms: int
+    power_up_window_ms: int
 
 
 @dataclass(frozen=True)
@@ -99,22 +101,15 @@ class Pin:
     """A used I/O pin. Only ``use == "link"`` pins carry the link fields."""
 
     pin: int
-    use: str  # servo | pad | link
+    use: str  # servo | link
     port: str | None = None  # prev | next | lead | bypass_next ... (compile.topology)
     neighbour: ModuleId | None = None
     neighbour_pin: int | None = None
     role: str | None = None  # master | slave
     colour: int | None = None
-    deadline_ms: int | None = None
-    first_deadline_ms: int | None = None
-    miss_iteration_ms: int | None = None
-    ok_iteration_ms: int | None = None
-    recover_ms: int | None = None  # slaves only
     bypass: bool = False
-    near_deadline_ms: int | None = None  # NN bypass: give-up while the chain wire is dead
     send_states: int | None = None
     receive_states: int | None = None
-    wait_base_units: int | None = None
 
 
 @dataclass(frozen=True)
@@ -125,12 +120,11 @@ class ServoTable:
 
 @dataclass(frozen=True)
 class Timing:
-    """The timing model's estimates for one module, in seconds (compile.plan.estimates)."""
+    """The timing model's estimates for one module, in seconds (compile.plan.estimates); for
+    reporting only, no constant of the programs depends on them."""
 
-    nominal_transition_s: float
-    fault_free_exchange_s: float
-    worst_case_transition_s: float
-    first_transition_s: float
+    nominal_transition_s: float  # the robot's period, unperturbed
+    first_transition_s: float  # from a common power-up to the first transition
     longest_servo_gap_s: float
 
 
@@ -146,13 +140,7 @@ class Module:
     ram_bytes_available: int
     pins: list[Pin]
     servo: ServoTable
-    transition_ms: int
-    exchange_allowance_ms: int
-    free_exchange_ms: int
-    hold_step_ms: int
-    hold_pause_ms: int
-    pad_base: int
-    roll_call_ms: int
+    dead_ticks: int  # DeadTicks (protocol/link.md §5)
     timing: Timing
     ram_map: dict[str, tuple[str, int]] | None = None  # "state"/"tn" -> (kind, index) in RAM
 
@@ -231,22 +219,10 @@ def _pin_json(p: Pin) -> dict[str, Any]:
         neighbour_pin=p.neighbour_pin,
         role=p.role,
         colour=p.colour,
-        deadline_ms=p.deadline_ms,
-        first_deadline_ms=p.first_deadline_ms,
-        miss_iteration_ms=p.miss_iteration_ms,
-        ok_iteration_ms=p.ok_iteration_ms,
     )
-    if p.recover_ms is not None:
-        out["recover_ms"] = p.recover_ms
     if p.bypass:
         out["bypass"] = True
-    if p.near_deadline_ms is not None:
-        out["near_deadline_ms"] = p.near_deadline_ms
-    out.update(
-        send_states=p.send_states,
-        receive_states=p.receive_states,
-        wait_base_units=p.wait_base_units,
-    )
+    out.update(send_states=p.send_states, receive_states=p.receive_states)
     return out
 
 
@@ -262,28 +238,11 @@ def _module_json(m: Module) -> dict[str, Any]:
         "ram_bytes_available": m.ram_bytes_available,
         "pins": [_pin_json(p) for p in m.pins],
         "servo": {"pulsout": list(m.servo.pulsout), "clipped_states": list(m.servo.clipped_states)},
-        "transition_ms": m.transition_ms,
-        "exchange_allowance_ms": m.exchange_allowance_ms,
-        "free_exchange_ms": m.free_exchange_ms,
-        "hold_step_ms": m.hold_step_ms,
-        "hold_pause_ms": m.hold_pause_ms,
-        "pad_base": m.pad_base,
-        "roll_call_ms": m.roll_call_ms,
+        "dead_ticks": m.dead_ticks,
         "timing": dict(m.timing.__dict__),
     }
     if m.ram_map:
         out["ram_map"] = {k: [kind, index] for k, (kind, index) in m.ram_map.items()}
-    return out
-
-
-def _link_json(link: LinkSettings) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in link.__dict__.items():
-        if key == "reply_next_dead_base":
-            continue
-        out[key] = value
-        if key == "reply_base" and link.reply_next_dead_base is not None:
-            out["reply_next_dead_base"] = link.reply_next_dead_base
     return out
 
 
@@ -295,7 +254,7 @@ def to_json(man: Manifest) -> dict[str, Any]:
         "robot": dict(man.robot.__dict__),
         "period_s": man.period_s,
         "tokenized": man.tokenized,
-        "link": _link_json(man.link),
+        "link": dict(man.link.__dict__),
         "announcement": man.announcement,
         "modules": [_module_json(m) for m in man.modules],
         "links": [
@@ -430,16 +389,9 @@ def _read_pin(f: _Fields, robot: RobotSize) -> Pin:
         neighbour_pin=f.integer("neighbour_pin"),
         role=f.string("role"),
         colour=f.integer("colour"),
-        deadline_ms=f.integer("deadline_ms"),
-        first_deadline_ms=f.integer("first_deadline_ms"),
-        miss_iteration_ms=f.integer("miss_iteration_ms"),
-        ok_iteration_ms=f.integer("ok_iteration_ms"),
-        recover_ms=f.integer("recover_ms", optional=True),
         bypass=f.boolean("bypass", default=False),
-        near_deadline_ms=f.integer("near_deadline_ms", optional=True),
         send_states=f.integer("send_states"),
         receive_states=f.integer("receive_states"),
-        wait_base_units=f.integer("wait_base_units"),
     )
 
 
@@ -477,13 +429,7 @@ def _read_module(f: _Fields, robot: RobotSize) -> Module:
         ram_bytes_available=f.integer("ram_bytes_available"),
         pins=[_read_pin(p, robot) for p in f.items("pins")],
         servo=ServoTable(servo.ints("pulsout"), servo.ints("clipped_states")),
-        transition_ms=f.integer("transition_ms"),
-        exchange_allowance_ms=f.integer("exchange_allowance_ms"),
-        free_exchange_ms=f.integer("free_exchange_ms"),
-        hold_step_ms=f.integer("hold_step_ms"),
-        hold_pause_ms=f.integer("hold_pause_ms"),
-        pad_base=f.integer("pad_base"),
-        roll_call_ms=f.integer("roll_call_ms"),
+        dead_ticks=f.integer("dead_ticks"),
         timing=Timing(**{name: timing.number(name) for name in Timing.__dataclass_fields__}),
         ram_map=_read_ram_map(f),
     )
@@ -517,12 +463,7 @@ def from_json(obj: Any, file: str | os.PathLike[str] = MANIFEST_FILE) -> Manifes
     link = top.sub("link")
     link_settings = LinkSettings(
         protocol=link.string("protocol"),
-        **{
-            k: link.integer(k)
-            for k in LinkSettings.__dataclass_fields__
-            if k not in ("protocol", "reply_next_dead_base")
-        },
-        reply_next_dead_base=link.integer("reply_next_dead_base", optional=True),
+        **{k: link.integer(k) for k in LinkSettings.__dataclass_fields__ if k != "protocol"},
     )
     wires = [
         Wire(

@@ -27,7 +27,8 @@ class TwinCheck:
     sim_distance: float | None
     period_mean: float
     period_std: float
-    period_nominal: float
+    period_nominal: float  # the build's --period (the reference simulation's transition time)
+    period_estimate: float  # the manifest's estimated period (timing model)
     servo_gap_max: float
     servo_gap_estimate: float
     stalled: list[ModuleId]
@@ -46,8 +47,8 @@ class TwinCheck:
 
 
 def settle_seconds(build: Build) -> float:
-    """How long the twin's robot holds R^0 before the first transition (power-up period plus
-    roll call, the manifest's ``first_transition_s``)."""
+    """How long the twin's robot holds R^0 before the first transition (the join, then R^0
+    for a period: the manifest's ``first_transition_s``)."""
     return max(m.timing.first_transition_s for m in build.manifest.modules)
 
 
@@ -88,6 +89,7 @@ def check(
     hash8 = build.manifest.controller.hash8
     ok = all(line == announce.line(mid, hash8) for mid, line in result.announcements.items())
     estimates = [m.timing.longest_servo_gap_s for m in build.manifest.modules]
+    periods = [m.timing.nominal_transition_s for m in build.manifest.modules]
     gaps = list(result.servo_gaps.values())
     return TwinCheck(
         transitions=transitions,
@@ -99,6 +101,7 @@ def check(
         period_mean=mean,
         period_std=std,
         period_nominal=build.period,
+        period_estimate=max(periods) if periods else math.nan,
         servo_gap_max=max(gaps) if gaps else math.nan,
         servo_gap_estimate=max(estimates) if estimates else math.nan,
         stalled=list(result.stalled),

@@ -165,11 +165,17 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         servo.target = servo.angle_of(units)
         rec = self.records[mid]
         stamp = self.stamps[mid]
-        if not rec.states:  # the first pulse holds R^0
+        if not rec.states:  # the first pulse holds R^0 ...
             state_of, tn_of = self._readers[mid]
+            tn = tn_of(stamp)
+            if 0 < tn <= 7:  # ... unless it joined a robot that had moved on (no JOIN answered
+                # in time: it took the first REQ(h)); it held R^0, unshown, until transition tn
+                r0 = int(self.build.module(mid).initial_state)
+                rec.states += [r0] * tn
+                rec.times_ns += [start_ns] * tn
             rec.states.append(state_of(stamp))
             rec.times_ns.append(start_ns)
-            rec.last_tn = tn_of(stamp)
+            rec.last_tn = tn
         else:  # a transition's time is the first pulse of its new state
             self._observe(mid, stamp)
         if self._dies_at_pulse(mid, stamp, after=True):
@@ -220,8 +226,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         reference module, to close the last path point), or ``timeout_s`` of virtual time."""
         if self.reference is None:
             raise InputError("every module failed: nothing runs")
-        period = self.build.period
-        limit = timeout_s if timeout_s is not None else (transitions + 3) * period * 3 + 1.0
+        limit = timeout_s if timeout_s is not None else self.stall_limit_s(transitions)
         limit_ns = int(limit * NS)
         chunk_ns = CHUNK_STEPS * self.dt_ns
         ref = self.records[self.reference]
@@ -245,6 +250,24 @@ class RobotTwin(Body, Links, Faults, Scheduler):
             if done >= transitions + 1 and (self.sim is None or len(ref.states) >= transitions + 2):
                 break
         return self._result(transitions)
+
+    def stall_limit_s(self, transitions: int) -> float:
+        """Virtual seconds after which a run that has not made ``transitions`` counts as
+        stalled: three times the nominal period (the build's, or the manifest's estimate if
+        longer) per transition, times the slowest stamp's timing factor, after the latest
+        power-up and every outage, plus twice the power-up window (a neighbour dead from
+        power-up is waited for that long, counted in lower bounds of tries), so the NN relay
+        at timing scale 3 (~2 s a transition) still completes."""
+        estimate = max(
+            (m.timing.nominal_transition_s for m in self.build.manifest.modules), default=0.0
+        )
+        period = max(self.build.period, estimate)
+        p, draws = self.perturb.perturbation, self.perturb.draws.values()
+        slow = max([1.0, *(d.speed(p.timing_scale) for d in draws)])
+        start = max([0.0, *(d.start_s for d in draws)])
+        outages = sum(r.off_s for r in p.resets)
+        window = self.build.manifest.link.power_up_window_ms / 1000
+        return (transitions + 3) * period * 3 * slow + start + outages + 2 * window * slow + 1.0
 
     def _result(self, transitions: int) -> TwinResult:
         states: dict[ModuleId, list[int]] = {}

@@ -1,7 +1,7 @@
 """When each module's servo moves: a build run on the twin without physics, recorded.
 
 :func:`extract_schedule` runs every module's program on the twin's interpreter, its timing
-model and link protocol, exactly as ``bstool twin`` does (power-up, roll call, exchanges, rule
+model and link protocol, exactly as ``bstool twin`` does (power-up and join, the serve loop, rule
 look-ups, RUN dispatch, one servo pulse every ~23 ms), but without MuJoCo. At every 10 ms chunk
 it records what the twin would apply to each actuator (:meth:`hil_mock.body.Body._servo_drive`:
 the last pulse's target, or limp after 60 ms without one), and the instant of each path point

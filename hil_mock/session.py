@@ -129,6 +129,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
     limited: list[ModuleId] = []
     if reference is not None and ctrl is not None:
         reference, limited = _documented_limit(build, ctrl, reference, options)
+        _hold_frozen(result, limited, options.transitions)
     report = check(
         build, result, reference, options.transitions, sim_distance, stamp_path=stamp_path
     )
@@ -137,8 +138,8 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
             "modules after two neighbouring dead NN modules ("
             + ", ".join(m.label for m in limited)
             + ") are compared with the compiled programs' emulation: they cannot hear the modules"
-            " before the pair and keep the last upstream states they received (the documented"
-            ' limit, docs/compile.md "Two neighbours dying one after the other")'
+            " before the pair and stop where they are (the documented"
+            ' limit, docs/compile.md "Checking exactness")'
         )
     return TwinReport(
         build,
@@ -181,6 +182,16 @@ def _run(twin: RobotTwin, options: TwinOptions) -> TwinResult:
                 rec.frame(t.sim.data)
 
         return twin.run(options.transitions, on_chunk=on_chunk, **run)  # type: ignore[arg-type]
+
+
+def _hold_frozen(result: TwinResult, frozen: list[ModuleId], transitions: int) -> None:
+    """Modules past two dead NN neighbours get no frame and stop where they are (the documented
+    limit, protocol/link.md §4.6): they show their last state for ever, they have not stalled."""
+    for mid in frozen:
+        seq = result.states.get(mid, [])
+        if seq:
+            result.states[mid] = (seq + seq[-1:] * (transitions + 1 - len(seq)))[: transitions + 1]
+    result.stalled = [m for m in result.stalled if m not in frozen]
 
 
 def after_dead_pairs(legs: int, modules: int, dead: Sequence[ModuleId], nn: bool) -> list[ModuleId]:

@@ -11,7 +11,6 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from bstool.builtin import builtin_controller
-from bstool.compile import timing
 from bstool.compile.calibration import DEFAULT
 from bstool.compile.plan import build_plans
 from bstool.compile.topology import links, module_links, reads
@@ -25,18 +24,19 @@ VECTORS = Path(__file__).resolve().parents[1] / "protocol" / "vectors"
 def test_frame_vectors() -> None:
     data = json.loads((VECTORS / "link_frames.json").read_text())
     for case in data["frames"]:
-        reply = case["kind"] == "reply"
-        raw = link.encode_frame(reply, case["t"], case["states"])
+        nn = case["family"] == "nn"
+        want = link.Frame(case["kind"], case["t"] if case["kind"] != "JOIN" else 0,
+                          tuple(case["states"]))  # fmt: skip
+        raw = link.encode(want, nn=nn)
         assert raw.hex(" ").upper() == case["bytes"]
-        frame = link.decode_frame(raw, reply=reply, t=case["t"], payload=len(case["states"]))
-        assert frame is not None and list(frame.states) == case["states"]
+        assert link.parse(raw, nn=nn, states=len(case["states"]) or 1) == want
     for case in data["rejected"]:
         raw = bytes.fromhex(case["bytes"])
-        reply = case["kind"] == "reply"
-        assert link.decode_frame(raw, reply=reply, t=case["t"], payload=case["payload"]) is None
+        assert link.parse(raw, nn=case["family"] == "nn", states=case["states"]) is None, case
     for ex in data["exchanges"]:
         for step in ex["steps"]:
-            assert bytes.fromhex(step["bytes"])[0] & 0xF0 in (0xA0, 0xC0)
+            assert link.parse(bytes.fromhex(step["bytes"]), nn="NN" in ex["description"],
+                              states=3) is not None  # fmt: skip
 
 
 def test_topology_vectors() -> None:
@@ -47,23 +47,65 @@ def test_topology_vectors() -> None:
 
 
 @given(
-    reply=st.booleans(),
+    kind=st.sampled_from(["REQ", "REP", "WELCOME"]),
+    nn=st.booleans(),
     t=st.integers(0, 7),
     states=st.lists(st.integers(0, 15), min_size=1, max_size=15),
 )
-def test_frame_round_trip(reply: bool, t: int, states: list[int]) -> None:
-    raw = link.encode_frame(reply, t, states)
-    frame = link.decode_frame(raw, reply=reply, t=t, payload=len(states))
-    assert frame == link.Frame(reply, t, tuple(states))
+def test_frame_round_trip(kind: str, nn: bool, t: int, states: list[int]) -> None:
+    n = link.payload_length(kind, nn=nn, states=len(states))
+    frame = link.Frame(kind, t, tuple(states[:n]) if n else ())
+    if kind == "WELCOME" and not nn:
+        frame = link.Frame(kind, t, (*(states * 6)[:5], t))
+    raw = link.encode(frame, nn=nn)
+    assert link.parse(raw, nn=nn, states=len(frame.states) or 1) == frame
     # a header never looks like a payload byte, so a receiver that starts mid-frame rejects it
-    assert link.decode_state(raw[0]) is None
-    assert link.decode_frame(raw, reply=not reply, t=t, payload=len(states)) is None
-    assert link.decode_frame(raw, reply=reply, t=(t + 1) % 8, payload=len(states)) is None
+    assert all(link.decode_state(raw[0], u) is None for u in range(8))
+    if frame.states and not (kind == "WELCOME" and not nn):  # t is in every payload's check
+        other = bytes([raw[0] ^ 1, *raw[1:]])
+        assert link.parse(other, nn=nn, states=len(frame.states)) is None
 
 
-@given(s=st.integers(0, 15), flip=st.integers(0, 7))
-def test_single_bit_errors_are_caught(s: int, flip: int) -> None:
-    assert link.decode_state(link.encode_state(s) ^ (1 << flip)) is None
+@given(s=st.integers(0, 15), t=st.integers(0, 7), flip=st.integers(0, 7))
+def test_single_bit_errors_are_caught(s: int, t: int, flip: int) -> None:
+    assert link.decode_state(link.encode_state(s, t) ^ (1 << flip), t) is None
+
+
+def test_bare_answers_are_two_bits_apart() -> None:
+    """NN TOOK, REP and WAIT (protocol/link.md §3): no single flipped bit turns one into
+    another (a WAIT read as REP deadlocked a leg)."""
+    for t in range(link.TRANSITION_MOD):
+        heads = [link.TOOK + t, link.REP + t, link.WAIT + t]
+        for a in heads:
+            for b in heads:
+                assert a == b or bin(a ^ b).count("1") >= 2
+
+
+def test_every_program_declares_the_manifest_constants(tmp_path: Path) -> None:
+    """The constants bstool.wire.link gives the manifest are the CONs of every compiled program
+    (nn_main.bsx.j2 spells them out, the CA templates take them from the plan)."""
+    import re
+
+    from bstool.compile import compile_controller
+
+    for model in MODELS:
+        res = compile_controller(builtin_controller(model), tmp_path / model, tokenize=False)
+        man = res.manifest
+        for m in man.modules:
+            text = (tmp_path / model / m.entry).read_text()
+            con = dict(re.findall(r"^(\w+)\s+CON\s+(\d+)", text, re.M))
+            k = man.link
+            assert int(con["HoldFrames"]) == k.hold_frames, (model, m.label)
+            assert int(con["ReplyWait"]) == k.reply_wait_units
+            assert int(con["Listen"]) == k.listen_units
+            assert int(con["Pace"]) == k.pace_ms
+            assert int(con["PayloadWait"]) == k.payload_wait_units
+            assert int(con["DeadTicks"]) == m.dead_ticks
+            if model in NN_MODELS:
+                assert int(con["DeadTicks"]) * link.NN_TICK_MS == k.dead_limit_ms
+                assert int(con["JoinTicks"]) * link.NN_TICK_MS == k.power_up_window_ms
+            else:
+                assert int(con["JoinMs"]) == k.power_up_window_ms
 
 
 def test_baudmode() -> None:
@@ -118,36 +160,12 @@ def test_link_vector_files_are_up_to_date() -> None:
         assert text == (VECTORS / name).read_text(), "run protocol/vectors/make_link_vectors.py"
 
 
-def test_next_dead_header_is_two_bits_from_the_others() -> None:
-    """The NN reply `$F8 + t` (protocol/link.md §3): one flipped bit never makes or hides it,
-    and like every header it fails the payload check."""
-    for t in range(link.TRANSITION_MOD):
-        flagged = link.REPLY_NEXT_DEAD_BASE + t
-        for other in (link.REPLY_BASE + t, link.REQUEST_BASE + t):
-            assert bin(flagged ^ other).count("1") == 2
-        assert link.decode_state(flagged) is None
-
-
-def test_nn_pair_guards() -> None:
-    """Two NN neighbours dying (protocol/link.md §5): a chain master learns from its slave's
-    reply that the module after it is dead (its bypass to that module), and a bypass master with
-    an upstream neighbour gives up early while its chain wire is dead, so that it is back before
-    that neighbour's deadline however early the neighbour is."""
-    ctrl = load_controller(builtin_controller("nnsin"))
+def test_dead_limit_is_at_least_a_second_and_a_half() -> None:
+    """DeadTicks (protocol/link.md §5): silent ticks, each a lower bound of tries, >= 1.5 s."""
+    ctrl = load_controller(builtin_controller("ca2dsing"))
     for plan in build_plans(ctrl, DEFAULT, 0.475, "0" * 8):
-        j = plan.mid.module
-        for ll in plan.links:
-            if ll.master and not ll.link.bypass and j + 2 < ctrl.modules:
-                assert plan.links[ll.next_dead].peer == ModuleId(plan.mid.leg, j + 2)
-            if not ll.master and not ll.link.bypass and j + 1 < ctrl.modules:
-                assert plan.links[ll.reports_dead].peer == ModuleId(plan.mid.leg, j + 1)
-            if ll.master and ll.link.bypass:
-                if j == 0:
-                    assert ll.near_deadline == 0  # the lead: nobody upstream to be back for
-                    continue
-                up = next(u.deadline for u in plan.links if not u.master and not u.link.bypass)
-                late = max(d.deadline for d in plan.links if d.master) + plan.hold_step
-                early = max(plan.exch_ms, late - plan.hold_ms)
-                back = ll.near_deadline + plan.hold_step - plan.hold_ms + early
-                assert back + timing.NEAR_SAFETY_MS <= up
-                assert timing.LATE_MS <= ll.near_deadline < ll.deadline
+        wires = len(plan.links)
+        tick_ms = link.CA_TICK_ROUNDS * link.CA_TRY_MIN_MS * wires
+        assert (plan.dead_ticks - 1) * tick_ms >= link.CA.dead_limit_ms
+    assert link.nn_dead_ticks() * link.NN_TICK_MS >= 1500
+    assert link.nn_join_ticks() * link.NN_TICK_MS >= 3000 + link.nn_dead_ticks()

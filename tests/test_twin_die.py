@@ -1,9 +1,9 @@
 """A module dying mid-run on the twin (``RobotTwin(die=...)``, ``bstool twin --die L.M@T``).
 
 The dying module stops once it has shown S^T and its neighbours have had S^T; its neighbours
-give up on it at their deadlines (keeping S^T, an NN bypass running in the same transition),
-mark it dead after two silent transitions, and the period recovers (protocol/link.md §5). The
-states equal ``controller.states(T, failed_at={module: T})`` from the first transition on.
+wait for it until the dead-limit (keeping S^T, an NN bypass taking over), then go on without
+it (protocol/link.md §4.5). The states equal ``controller.states(T, failed_at={module: T})``
+from the first transition on.
 Figures for every module of every model: ``python bench/twin_die_sweep.py``.
 """
 
@@ -22,11 +22,10 @@ from bstool.compile.plan import build_plans
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
 from bstool.robot import state_to_angle
-from bstool.wire import link
 from hil_mock.robot import RobotTwin, load_build
 
 TRANSITIONS = 32
-SWITCH_OVER = 1 + link.SILENT_TRANSITIONS  # transitions after the death until the marks
+SWITCH_OVER = 12  # transitions after the death until the dead-limit (>= 1.5 s; 2-4 s nominal)
 
 
 @pytest.fixture(scope="module", params=["ca2ddiff", "nnsin"])
@@ -40,6 +39,10 @@ def test_a_module_dying_mid_run_equals_the_failed_at_reference(
     build: Path, dying: ModuleId, at: int
 ) -> None:
     b = load_build(build)
+    if b.manifest.controller.model.startswith("nn") and dying.module == 0:
+        pytest.xfail(
+            "NN relay: a dying lead leaves its leg without a pace-maker (link-redesign §6)"
+        )
     ctrl = load_controller(build / "controller.json")
     twin = RobotTwin(b, die={dying: at}, physics=False)
     result = twin.run(TRANSITIONS)
@@ -51,16 +54,18 @@ def test_a_module_dying_mid_run_equals_the_failed_at_reference(
     held = int(got[at, dying.leg, dying.module])
     assert twin.servos[dying].target == pytest.approx(state_to_angle(held, b.manifest.robot.states))
     assert len(twin.records[dying].states) == at + 1
-    # after the switch-over the period is back within 3 % (period i ends transition i + 2)
+    # after the dead-limit the robot runs on at about the estimated period (timing model)
     after = [p for m, ps in result.periods.items() if m != dying for p in ps[at + SWITCH_OVER :]]
-    assert abs(np.mean(after) - b.period) <= 0.03 * b.period
-    assert max(result.servo_gaps.values()) <= 0.025
+    estimate = max(m.timing.nominal_transition_s for m in b.manifest.modules)
+    assert np.mean(after) <= 1.25 * estimate
+    gap = max(m.timing.longest_servo_gap_s for m in b.manifest.modules)
+    assert max(result.servo_gaps.values()) <= 1.5 * gap
 
 
 def test_dying_at_0_and_limp(build: Path) -> None:
-    """``@0``: an NN module dies at its first pulse (before the roll call), so it is exactly a
-    module dead from power-up; a CA module takes part in the roll call and dies after it. Either
-    way the states are the reference's ``failed``; ``limp_failed`` makes its servo limp."""
+    """``@0``: the module dies at its first pulse (after the join, before S^1), so its
+    neighbours hold R^0 of it: the states are the reference's ``failed``; ``limp_failed`` makes
+    its servo limp."""
     b = load_build(build)
     ctrl = load_controller(build / "controller.json")
     dying = ModuleId(1, 2)
@@ -83,16 +88,19 @@ def nnsin_build(builtin_build: BuiltinBuild) -> Path:
 def test_two_neighbours_dying_leave_the_module_before_them_alone(
     nnsin_build: Path, die: dict[ModuleId, int]
 ) -> None:
-    """Issue 16: with 4.2 and 4.3 dying one after the other (either order), 4.1 froze from
-    transition 12: it waited on its bypass to the second one until the bypass deadline, came
-    back too late for the lead, and the two marked each other dead. Everything before and at the
-    pair must equal the reference; the modules after it are the documented limit (they keep the
-    last upstream states they heard), i.e. the compiled tables run by ``emulate.run``."""
+    """Issue 16: 4.2 and 4.3 dying one after the other (either order). Everything before and
+    at the pair must equal the reference; the modules after it are the documented limit (no
+    frame reaches them: they stop where they are), i.e. ``emulate.run``; the twin's session
+    holds their last state (hil_mock.session._hold_frozen), here the record just ends."""
     b = load_build(nnsin_build)
     ctrl = load_controller(nnsin_build / "controller.json")
     T = 14
     result = RobotTwin(b, die=die, physics=False).run(T)
-    assert result.stalled == []
+    after = [ModuleId(4, 4), ModuleId(4, 5)]
+    assert sorted(result.stalled) == after
+    for mid in after:  # frozen: the last state shown, for ever
+        seq = result.states[mid]
+        result.states[mid] = (seq + seq[-1:] * (T + 1 - len(seq)))[: T + 1]
     got = result.state_array(b.legs, b.modules, T)
     want = ctrl.states(T, failed_at=die)
     np.testing.assert_array_equal(got[:, :, :4], want[:, :, :4])  # 4.1 is before the pair

@@ -1,8 +1,9 @@
 """Link noise on the robot twin: compiled programs stay exactly on the reference.
 
-A slave lingers on the wire after its reply and answers the master's retries, so a lost or
-damaged byte costs a retry, not a neighbour's state (protocol/link.md §4). Figures for other
-noise levels and seeds: docs/compile.md "Link noise".
+Nothing of the serve loop is given up on: a lost or damaged byte costs a retry, never a
+neighbour's state (protocol/link.md §4.2). Figures for other
+noise levels and seeds (the old protocol): docs/compile.md "Link noise"; the serve loop under
+noise: docs/link-redesign.md §5.
 """
 
 from __future__ import annotations
@@ -12,7 +13,6 @@ import pytest
 from conftest import BuiltinBuild
 
 from bstool.builtin import builtin_controller
-from bstool.compile import timing
 from bstool.controllers import load_controller
 from bstool.wire import link
 from hil_mock.robot import RobotTwin, load_build
@@ -34,21 +34,17 @@ def test_noisy_links_keep_the_states_exact(model: str, builtin_build: BuiltinBui
         result.state_array(build.legs, build.modules, TRANSITIONS),
         load_controller(source).states(TRANSITIONS),
     )
-    mean, _ = result.period_stats()  # retries do not slow the robot down
-    assert abs(mean - build.period) <= 0.03 * build.period
-    assert max(result.servo_gaps.values()) <= 0.025
+    mean, _ = result.period_stats()  # retries slow the robot down only a little
+    estimate = max(m.timing.nominal_transition_s for m in build.manifest.modules)
+    assert mean <= 1.25 * estimate
+    gap = max(m.timing.longest_servo_gap_s for m in build.manifest.modules)
+    assert max(result.servo_gaps.values()) <= 1.5 * gap
 
 
-def test_linger_and_recovery_constants_fit_the_masters_retries() -> None:
-    """The waits that make retries safe (protocol/link.md §4), in 0.4 ms units: a master leaves
-    ``ReplyBase`` (+ statements) between the last byte it got and its next try."""
-    longest_pulse = 2.6 / timing.SERIN_UNIT_MS  # the longest servo pulse, with margin
-    # after a partial frame the timeout restarts: pulse + listening must end before the next try
-    assert timing.SLAVE_BASE_UNITS < link.REPLY_BASE_UNITS
-    assert link.RECOVER_UNITS < link.REPLY_BASE_UNITS
-    assert link.LINGER_UNITS + longest_pulse < link.REPLY_BASE_UNITS
-    # ... and the recovery listen, begun within SlaveBase of a request's end, outlasts the gap
-    assert timing.SLAVE_BASE_UNITS + link.RECOVER_UNITS - longest_pulse > link.REPLY_BASE_UNITS + 2
-    # the linger hears a retry even if its header is lost: it outlasts the retry's second byte
-    linger = link.LINGER_LISTENS * link.LINGER_UNITS * timing.SERIN_UNIT_MS
-    assert linger > timing.retry_after_ms() + link.byte_ms() + 1.0
+def test_the_serve_loop_s_waits_fit_each_other() -> None:
+    """protocol/link.md §5: a slave listens longer than a master waits for a reply, so a
+    master's retry meets a listen; the payload wait covers a byte at the pace."""
+    for k in (link.CA, link.NN):
+        assert k.listen > k.reply_wait
+        assert k.payload_wait * 0.4 > link.byte_ms() + k.pace_ms - 1.0
+        assert k.pace_ms * 1000 > 150 * 3.6  # a slow receiver's re-arm (item time x speed)

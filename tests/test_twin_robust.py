@@ -3,9 +3,9 @@ perturbation per model (no physics, T = 4), every module compared with the healt
 ``controller.states(T)`` (for the short resets too: a module off for less than the dead-limit
 must be waited for, docs/link-redesign.md).
 
-Cases today's protocol (protocol/link.md) is known to fail are ``xfail(strict=True)``: the
-redesign of docs/link-redesign.md must turn them into passes, and a strict xfail then fails,
-so the marks cannot outlive the fix. The whole sweep: ``python bench/twin_robustness.py``.
+The old roll-call protocol failed the spread power-up, the resets and the NN relay at timing
+scale 3; the serve loop (protocol/link.md) passes them all (KNOWN_FAILING is empty; a case
+put there is a strict xfail). The whole sweep: ``python bench/twin_robustness.py``.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ CASES: dict[str, tuple[Perturbation, float]] = {
     "clock spread ±2 %": (Perturbation(clock_spread=0.02, seed=1), 0.0),
     "item time 150 us": (Perturbation(item_time_us=150.0), 0.0),
     "start spread 3 s": (Perturbation(start_spread=3.0, seed=1), 0.0),
-    "reset lead 0.0": (Perturbation(), 0.0),  # the reset is placed after the roll call below
+    "reset lead 0.0": (Perturbation(), 0.0),  # the reset is placed after the first transition
     "reset middle 2.3": (Perturbation(), 0.0),
     "noise 1 %": (Perturbation(seed=1), 0.01),
     "combined + noise 1 %": (
@@ -45,13 +45,7 @@ CASES: dict[str, tuple[Perturbation, float]] = {
     ),
 }
 
-# Measured failures of today's protocol (docs/twin.md, "Today's protocol under perturbations"):
-# the NN relay from timing scale 2, every model on a spread power-up and on any reset.
-KNOWN_FAILING = {
-    *((model, "timing scale 3") for model in NN),
-    *((model, case) for model in MODELS for case in ("start spread 3 s", "reset lead 0.0",
-                                                      "reset middle 2.3")),
-}  # fmt: skip
+KNOWN_FAILING: set[tuple[str, str]] = set()
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +66,7 @@ def _params() -> list[object]:
             marks = []
             if (model, case) in KNOWN_FAILING:
                 marks.append(
-                    pytest.mark.xfail(strict=True, reason="today's protocol; docs/link-redesign.md")
+                    pytest.mark.xfail(strict=True, reason="protocol/link.md §6: not passed yet")
                 )
             out.append(pytest.param(model, case, marks=marks, id=f"{model}-{case}"))
     return out

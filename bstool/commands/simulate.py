@@ -67,7 +67,7 @@ class Source:
     "build_dir",
     type=click.Path(file_okay=False),
     help="Stamp-timed: move each servo when the build's program on its stamp does (the twin's"
-    " timing model, no physics there), with the twin's power-up and roll call.",
+    " timing model, no physics there), with the twin's power-up and join.",
 )
 @click.option(
     "--timing",

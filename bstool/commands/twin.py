@@ -205,7 +205,8 @@ def _print(report: TwinCheck, result: TwinResult) -> None:
             line += f", simulator {report.sim_distance * 100:.2f} cm"
         click.echo(line)
     click.echo(f"period:     {report.period_mean:.3f} s ± {report.period_std:.3f} "
-               f"(nominal {report.period_nominal:.3f} s)")  # fmt: skip
+               f"(manifest estimate {report.period_estimate:.3f} s, "
+               f"reference {report.period_nominal:.3f} s)")  # fmt: skip
     click.echo(f"servo gaps: longest {report.servo_gap_max * 1000:.1f} ms "
                f"(manifest estimate {report.servo_gap_estimate * 1000:.1f} ms)")  # fmt: skip
     click.echo(f"stalled:    {', '.join(map(str, report.stalled)) or 'none'}")

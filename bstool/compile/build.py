@@ -14,7 +14,7 @@ from tqdm import tqdm
 from bstool import buildfile, fileio, outputs, timingfile
 from bstool.compile import describe
 from bstool.compile.calibration import DEFAULT, Calibration, load_calibration
-from bstool.compile.plan import ModulePlan, build_plans, estimates, exchange_ms
+from bstool.compile.plan import ModulePlan, build_plans, estimates, period_ms
 from bstool.compile.render import render_module
 from bstool.compile.results import ModuleResult, SlotResult
 from bstool.compile.timing import measured
@@ -24,6 +24,7 @@ from bstool.errors import BstoolError, BuildError, InputError, SourceError
 from bstool.moduleid import ModuleId, parse_module
 from bstool.timingfile import TimingModel
 from bstool.tokenizer import Project, tokenize_source
+from bstool.wire.link import CA_TRY_MIN_MS
 
 SLOT_BYTES = buildfile.SLOT_BYTES
 RAM_BYTES = describe.RAM_BYTES
@@ -147,16 +148,17 @@ def _compile_loaded(
                 f"{ctrl.legs - 1}.{ctrl.modules - 1}",
             ) from None
     every = build_plans(ctrl, calib, period, full_hash[:8])
-    exchange = exchange_ms(every)
+    nominal = period_ms(every)
     plans = [p for p in every if not only or p.mid in only]
-    if exchange / 1000 > period * 0.8:
+    floor = every[0].serve.hold_frames * CA_TRY_MIN_MS
+    if period * 1000 < floor:
         raise BuildError(
-            f"a period of {period:g} s is too short for {ctrl.model}: exchanging states "
-            f"between neighbours takes about {exchange / 1000:.3f} s per transition",
-            hint=f"use --period {exchange / 800:.2f} or more",
+            f"a period of {period:g} s is too short for {ctrl.model}: a module shows each state "
+            f"for {every[0].serve.hold_frames} servo frames, at least {floor / 1000:.3f} s",
+            hint=f"use --period {nominal / 1000:.2f} (the estimated period) or more",
         )
     results = [
-        _module(plan, estimates(plan, exchange), tokenize)
+        _module(plan, estimates(plan, nominal), tokenize)
         for plan in tqdm(plans, desc="compile", unit="module", disable=not progress, leave=False)
     ]
     manifest = describe.manifest(ctrl, source_name, full_hash, period, results, tokenize)

@@ -6,7 +6,6 @@ import hashlib
 
 from bstool import buildfile as bf
 from bstool.compile.results import ModuleResult, SlotResult
-from bstool.compile.timing import PAD_PIN
 from bstool.compile.topology import SERVO_PIN, links, pin_role
 from bstool.controllers import NN_MODELS, Controller
 from bstool.wire import announce, link
@@ -37,7 +36,7 @@ def _slot(d: str, sr: SlotResult) -> bf.Slot:
 def _module(ctrl: Controller, res: ModuleResult) -> bf.Module:
     p = res.plan
     d = f"modules/{p.dirname}"
-    pins = [bf.Pin(SERVO_PIN, "servo"), bf.Pin(PAD_PIN, "pad")]
+    pins = [bf.Pin(SERVO_PIN, "servo")]
     for ll in p.links:
         pins.append(
             bf.Pin(
@@ -48,16 +47,9 @@ def _module(ctrl: Controller, res: ModuleResult) -> bf.Module:
                 neighbour_pin=ll.link.pin(ll.peer),
                 role="master" if ll.master else "slave",
                 colour=ll.link.colour,
-                deadline_ms=ll.deadline,
-                first_deadline_ms=ll.first_deadline,
-                miss_iteration_ms=ll.iter_ms,
-                ok_iteration_ms=ll.ok_ms,
-                recover_ms=None if ll.master else ll.recover_ms,
                 bypass=ll.link.bypass,
-                near_deadline_ms=ll.near_deadline or None,
                 send_states=len(ll.send),
                 receive_states=len(ll.store),
-                wait_base_units=ll.wait_units,
             )
         )
     return bf.Module(
@@ -71,15 +63,27 @@ def _module(ctrl: Controller, res: ModuleResult) -> bf.Module:
         ram_bytes_available=RAM_BYTES,
         pins=pins,
         servo=bf.ServoTable(list(p.pulses), list(p.clipped)),
-        transition_ms=p.hold_ms,
-        exchange_allowance_ms=p.exch_ms,
-        free_exchange_ms=p.free_ms,
-        hold_step_ms=p.hold_step,
-        hold_pause_ms=p.hold_pause,
-        pad_base=p.pad_base,
-        roll_call_ms=p.roll_ms,
+        dead_ticks=p.dead_ticks,
         timing=bf.Timing(**res.timing),
         ram_map=res.ram_map or None,
+    )
+
+
+def _link_settings(nn: bool) -> bf.LinkSettings:
+    k = link.serve_constants(nn)
+    return bf.LinkSettings(
+        protocol="protocol/link.md",
+        baud=link.BAUD,
+        baudmode=link.BAUDMODE,
+        pace_ms=k.pace_ms,
+        hold_frames=k.hold_frames,
+        listen_units=k.listen,
+        reply_wait_units=k.reply_wait,
+        payload_wait_units=k.payload_wait,
+        jitter_units=k.jitter_units,
+        keepalive_rounds=k.keepalive_rounds,
+        dead_limit_ms=k.dead_limit_ms,
+        power_up_window_ms=k.power_up_window_ms,
     )
 
 
@@ -111,19 +115,7 @@ def manifest(
         robot=bf.RobotSize(ctrl.legs, ctrl.modules, ctrl.k),
         period_s=period,
         tokenized=tokenized,
-        link=bf.LinkSettings(
-            protocol="protocol/link.md",
-            baud=link.BAUD,
-            baudmode=link.BAUDMODE,
-            request_base=link.REQUEST_BASE,
-            reply_base=link.REPLY_BASE,
-            reply_base_units=link.REPLY_BASE_UNITS,
-            recover_units=link.RECOVER_UNITS,
-            linger_units=link.LINGER_UNITS,
-            linger_listens=link.LINGER_LISTENS,
-            silent_transitions=link.SILENT_TRANSITIONS,
-            reply_next_dead_base=link.REPLY_NEXT_DEAD_BASE if ctrl.model in NN_MODELS else None,
-        ),
+        link=_link_settings(ctrl.model in NN_MODELS),
         announcement=announce.DESCRIPTION,
         modules=[_module(ctrl, res) for res in results],
         links=wires,

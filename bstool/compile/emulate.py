@@ -1,17 +1,22 @@
 """Run compiled module plans at the state level: what the programs compute, without timing.
 
-Each transition every live module exchanges S^t (CA) or relays t+1 states down the leg (NN;
-the bypass wire j-1 -> j+1 while j is dead) exactly as the templates do, looking up its next
-state in the compiled tables (the packed rule slots, the NN sum tables). A dead module never
-answers, so its neighbours keep their last known state of it — R^0, the compiled-in value. The
-tests compare this with the reference ``controller.states(T, failed)``; the twin engineer can
-compare the BS2sx twin with it too. ``die`` modules run up to S^T and are dead from then on
-(their neighbours keep S^T, an NN bypass runs from the next transition on), as the programs
-behave once their neighbours have given up on them (protocol/link.md §5).
+Each transition every live module serves its wires as the serve loop does (protocol/link.md):
+CA modules take the S^t of every neighbour, NN modules relay the t+1 states down the leg (the
+bypass wire j-1 -> j+1 while j is dead), each looking up its next state in the compiled
+tables (the packed rule slots, the NN sum tables). A dead module never answers: past the
+dead-limit its neighbours stop waiting and keep the last state they hold of it (R^0, the
+compiled-in value, for one dead from power-up). ``die`` modules run up to S^T and are dead
+from then on (their neighbours hold S^T; an NN module relays S^T before it shows it). An NN
+module whose upstream wires are all dead (after two dead neighbours, or module 1 after a dead
+lead) gets no frame and stops where it is, and so does the rest of its leg. ``rejoin`` modules
+(dead or dying) follow their rule again from the transition T2 on, from the state their
+neighbours held for them (``controller.states(..., rejoin=)``, protocol/link.md §4.4).
+The tests compare this with the reference ``controller.states(T, failed, failed_at)``.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -27,31 +32,36 @@ def run(
     transitions: int,
     dead: Iterable[ModuleId] = (),
     die: Mapping[ModuleId, int] | None = None,
+    rejoin: Mapping[ModuleId, int] | None = None,
 ) -> npt.NDArray[np.int64]:
     """States (T+1, n, m) that the compiled robot shows; ``dead`` modules never run, ``die``
-    modules stop after showing S^T."""
+    modules stop after showing S^T, ``rejoin`` modules run again from transition T2."""
     by_id = {p.mid: p for p in plans}
     n = max(p.mid.leg for p in plans) + 1
     m = max(p.mid.module for p in plans) + 1
-    from_start = set(dead)
+    fail = {**dict(die or {}), **dict.fromkeys(dead, 0)}
+    back = dict(rejoin or {})
     state = {p.mid: p.r0 for p in plans}
     known = {p.mid: [s for _, s in p.known] for p in plans}
     frames = [_grid(state, n, m)]
     family = plans[0].family
+
+    def gone(mid: ModuleId, t: int, *, sent: bool = False) -> bool:
+        """Dead in transition t; ``sent``: a module dying at t still sent S^t before."""
+        t0 = fail.get(mid, math.inf)
+        return (t0 < t if sent else t0 <= t) and t < back.get(mid, math.inf)
+
     for t in range(transitions):
-        # stopped: shows S^t for good; a CA module still exchanged S^t before it stopped
-        dead_set = from_start | {mid for mid, when in (die or {}).items() if when <= t}
         if family == "ca":
-            silent = from_start | {mid for mid, when in (die or {}).items() if when < t}
             for p in plans:
-                if p.mid in dead_set:
+                if gone(p.mid, t):
                     continue
                 for i, (peer, _) in enumerate(p.known):
-                    if peer not in silent:
+                    if not gone(peer, t, sent=True):
                         known[p.mid][i] = state[peer]
             nxt = dict(state)
             for p in plans:
-                if p.mid in dead_set:
+                if gone(p.mid, t):
                     continue
                 left = _value(p.left, state[p.mid], known[p.mid])
                 right = _value(p.right, state[p.mid], known[p.mid])
@@ -61,17 +71,19 @@ def run(
             for leg in range(n):
                 for j in range(m):
                     p = by_id[ModuleId(leg, j)]
-                    if p.mid in dead_set:
+                    if gone(p.mid, t):
                         continue
                     if p.nn_lead:
                         state[p.mid] = (state[p.mid] + 1) % 16
                         continue
                     upstream = ModuleId(leg, j - 1)
-                    if upstream not in dead_set:  # the relayed frame: its knowledge + its state
+                    if not gone(upstream, t):  # the relayed frame: its knowledge + its state
                         known[p.mid] = [*known[upstream], state[upstream]]
-                    elif j >= 2 and ModuleId(leg, j - 2) not in dead_set:  # the bypass wire
+                    elif j >= 2 and not gone(ModuleId(leg, j - 2), t):  # the bypass wire
                         before = ModuleId(leg, j - 2)
                         known[p.mid][: j - 1] = [*known[before], state[before]]
+                    else:  # no frame reaches it: it stops where it is (so does its leg after it)
+                        continue
                     total = sum(known[p.mid][a] for a in p.nn_terms)
                     state[p.mid] = p.nn_table[total]
         frames.append(_grid(state, n, m))

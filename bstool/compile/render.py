@@ -10,7 +10,7 @@ from pathlib import Path
 
 import jinja2
 
-from bstool.compile import tables, timing
+from bstool.compile import tables
 from bstool.compile.plan import ModulePlan
 from bstool.compile.topology import SERVO_PIN
 from bstool.errors import BuildError
@@ -79,16 +79,9 @@ def _common(plan: ModulePlan) -> dict[str, object]:
     return {
         "p": plan,
         "servo_pin": SERVO_PIN,
-        "pad_pin": timing.PAD_PIN,
         "baud": link.BAUD,
         "baudmode": link.BAUDMODE,
-        "reply_base": link.REPLY_BASE_UNITS,
-        "slave_base": timing.SLAVE_BASE_UNITS,
-        "recover": link.RECOVER_UNITS,
-        "linger": link.LINGER_UNITS,
-        "lingers": link.LINGER_LISTENS,
-        "silent": link.SILENT_TRANSITIONS,
-        "late_ms": timing.LATE_MS,
+        "k": plan.serve,
         "l_per_slot": tables.L_PER_SLOT,
     }
 

@@ -9,7 +9,7 @@ NN links run down each leg: a *chain* wire j−1 → j (colour j−1) and a *byp
 (colour j+1) that is used only while the module in between is dead. Module j needs the t+1
 states of every upstream module (eq. 11); the bypass keeps them flowing past one dead module.
 An NN module runs its wires in the order: receive (chain, then bypass), compute, send (chain,
-then bypass); colours set only the deadlines.
+then bypass); colours only order a module's wires in its serve round.
 """
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ def links(model: str, legs: int, modules: int) -> list[Link]:
     colours: dict[tuple[ModuleId, ModuleId], int] = {}
     used: dict[ModuleId, set[int]] = {}
     for a, b in sorted(pairs):
-        if model in NN_MODELS:  # chain j-1 -> j: j-1; bypass j-1 -> j+1: j+1 (deadlines only)
+        if model in NN_MODELS:  # chain j-1 -> j: j-1; bypass j-1 -> j+1: j+1 (round order)
             colour = a.module if b.module == a.module + 1 else b.module
         else:  # greedy: the smallest colour free at both ends
             taken = used.get(a, set()) | used.get(b, set())

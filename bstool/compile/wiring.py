@@ -7,7 +7,6 @@ from typing import TYPE_CHECKING
 
 import jinja2
 
-from bstool.compile.timing import PAD_PIN
 from bstool.compile.topology import PORTS, SERVO_PIN, pin_role
 from bstool.controllers import NN_MODELS
 from bstool.moduleid import ModuleId
@@ -72,12 +71,11 @@ def wiring(
         "angle_step": 360 // ctrl.legs if 360 % ctrl.legs == 0 else round(360 / ctrl.legs, 1),
         "axes": [(j, spec.axis_of(j)) for j in range(ctrl.modules)],
         "servo_pin": SERVO_PIN,
-        "pad_pin": PAD_PIN,
         "baud_debug": announce.BAUDMODE,
         "ports": ports,
         "bypass": "bypass_next" in roles,
         "wires": manifest.links,
-        "roll_s": max((r.plan.roll_ms for r in results), default=0) / 1000,
+        "window_s": manifest.link.power_up_window_ms / 1000,
         "order": manifest.flash_order,
         "first": str(first),
         "first_label": first.label,

@@ -1,106 +1,176 @@
-"""The module-to-module link: frame bytes and serial settings (normative text: protocol/link.md).
+"""The module-to-module link of the serve loop: frame bytes, serial settings and the loop's
+constants (normative text: protocol/link.md).
 
-The generated PBASIC builds and checks exactly these bytes; this module is the Python mirror
-used by the tests, the test vectors and the twin.
+The generated PBASIC builds and checks exactly these bytes; :func:`encode` and :func:`parse`
+are the Python mirror used by the tests, the test vectors and the twin.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
 from dataclasses import dataclass
 
 BAUD = 4800
 BAUDMODE = 2_500_000 // BAUD - 20 + 32768
 """BS2sx baudmode: 4800 baud, 8N1, true polarity, open drain (+32768), so a shared wire with a
 pull-up never has two drivers fighting (bs2sx.md §2)."""
-
-REQUEST_BASE = 0xA8
-"""Header of a master's frame: $A8 + (t mod 8)."""
-REPLY_BASE = 0xC8
-"""Header of a slave's reply: $C8 + (t mod 8)."""
-REPLY_NEXT_DEAD_BASE = 0xF8
-"""NN: header of the reply of module j on the chain wire from j-1 when j has marked its own next
-module j+1 dead: $F8 + (t mod 8). Module j-1 then marks its bypass to j+1 dead too, so that if j
-dies later it does not wait on a bypass nobody answers (protocol/link.md §5). Two bits away from
-$C8 (and from $A8), so no single flipped bit makes or hides it."""
 TRANSITION_MOD = 8
+"""Headers carry t mod 8: neighbours are within ±1 transition (the join within ±2)."""
 
-REPLY_BASE_UNITS = 19
-"""A master's pulse plus its reply wait, in the BS2sx's 0.4 ms units (7.6 ms): the SERIN timeout
-for the reply is ``ReplyBase - pulse / 500`` (5.4-7.0 ms; the reply starts within ~1.5 ms). The
-constant gap between tries lets a slave that caught only the tail of a request listen again
-before the next try (timing.SLAVE_BASE_UNITS)."""
-
-RECOVER_UNITS = 17
-"""A slave's pulse plus its listening (6.8 ms; SERIN timeout ``Recover - pulse / 500``) after it
-caught a damaged or partial request: begun within ``SlaveBase`` of the request's end, it lasts
-past the start of the master's next try; and since the timeout restarts on every byte, a partial
-frame caught in it still leaves the slave listening again before the try after that (pulse +
-timeout < the master's ``ReplyBase`` gap between tries), so retries can never lock step with
-the slave's pulses."""
-
-SILENT_TRANSITIONS = 2
-"""After the roll call, a neighbour silent up to the deadline in this many transitions running is
-marked dead like one silent in the roll call (never waited for again; NN bypasses switch on).
-Two, not one: a live neighbour is marked dead only if two exchanges in a row are lost up to the
-deadline (one is lost with about 5e-7 chance at 1 % byte noise, protocol/link.md §4), since the
-mark is for good; more than two would slow the robot for more transitions after a death."""
-
-LINGER_UNITS = 10
-"""Timeout of each of a slave's listens after its reply (4.0 ms): plus a pulse it is shorter
-than the gap between a master's tries, so a damaged retry caught in the linger (the timeout
-restarts after its last byte) leaves the slave listening again before the next try."""
-
-LINGER_LISTENS = 3
-"""A slave's listens after its reply, back to back: together (12 ms + statements) they last past the
-second byte of a master's retry, which starts at the latest ``ReplyBase`` plus a few statements
-after the last reply byte the master got (if the reply was lost or damaged), so even a retry
-whose header was lost is heard. Silence through all of them ends the exchange (protocol/link.md
-§4)."""
+# ---- headers (protocol/link.md §3) ------------------------------------------------------------
+REQ = 0xA8  # $A8 + t: a master's request (CA: my S^t; NN: S^(h+1) of modules 0..j)
+REP = 0xC8  # $C8 + t: a slave's reply (CA: my S^t; NN: bare, "I show it")
+TOOK = 0x98  # NN: $98 + h, "I took S^(h+1)"
+WAIT = 0x68  # NN: $68 + t, "alive, not yet"
+BEHIND = 0xE8  # CA: $E8 + t, "I am one transition behind you"
+WELCOME = 0xD8  # $D8 + t: the answer to a JOIN of a rebooted neighbour
+JOIN = 0xB8  # $B8, $B8: "I have just booted"
+KINDS = {REQ: "REQ", REP: "REP", TOOK: "TOOK", WAIT: "WAIT", BEHIND: "BEHIND", WELCOME: "WELCOME"}
 
 
-def encode_state(s: int) -> int:
-    """One state as a self-checking byte: high nibble 15 − s, low nibble s."""
+@dataclass(frozen=True)
+class ServeConstants:
+    """The serve loop's constants of one model family (PBASIC ``CON``s, manifest ``link``).
+
+    Every one is a policy or a bound of the stamp's own behaviour, never a size from the timing
+    model (protocol/link.md §5)."""
+
+    hold_frames: int  # servo frames (tries) a state is shown at least (CA) / the lead shows it (NN)
+    reply_wait: int  # master: reply wait, 0.4 ms units, + 0..7 jitter
+    listen: int  # slave: listening per try, 0.4 ms units, + 0..7 jitter
+    payload_wait: int  # the payload after a header, 0.4 ms units (NN: per byte)
+    pace_ms: int  # SEROUT pace between the bytes of a frame
+    dead_limit_ms: int  # a wire silent this long (sums of lower bounds of tries) is dead
+    power_up_window_ms: int  # the join waits this long for a silent neighbour at power-up
+    keepalive_rounds: int  # a master that has its reply still sends every this many rounds
+    jitter_units: int = 7  # RANDOM & 7 added to both timeouts
+
+
+CA = ServeConstants(
+    hold_frames=26,  # the period policy: 0.44-0.45 s unperturbed (issue 12: <= 0.50 s)
+    reply_wait=16,  # 6.4-9.2 ms: twice the slowest reply start at timing scale 3
+    listen=22,  # 8.8-11.6 ms: longer than the master's retry interval, so a retry meets a listen
+    payload_wait=8,  # 3.2 ms: one byte (2.08 ms) after the header at the 2 ms pace, with margin
+    pace_ms=2,  # above a slow receiver's SERIN re-arm (item time x speed <= 0.54 ms) with margin
+    dead_limit_ms=1500,  # the issue's 1 s with margin
+    power_up_window_ms=5000,  # the issue's 3 s power-up spread with margin
+    keepalive_rounds=4,  # every round doubled a 2-D lead's period; silence must mean "off"
+)
+NN = ServeConstants(
+    hold_frames=4,  # the lead's floor: the relay's round trips set the NN period, not the hold
+    reply_wait=16,  # as CA
+    listen=22,  # as CA
+    payload_wait=25,  # 10 ms per byte: a REQ of up to 6 bytes at the 2 ms pace
+    pace_ms=2,  # as CA
+    dead_limit_ms=1500,  # DeadTicks = 15 ticks of 100 ms
+    power_up_window_ms=4500,  # JoinTicks = 45 ticks of 100 ms
+    keepalive_rounds=4,  # as CA
+)
+NN_TICK_MS = 100
+"""NN: one silent tick is 100 ms of a sum of lower bounds of the tries."""
+CA_TICK_ROUNDS = 16
+"""CA: one silent tick is 16 serve rounds."""
+CA_TRY_MIN_MS = 7.2
+"""CA: the shortest try (a master's reply wait or a slave's listen, both at least 7.2 ms incl.
+the frame): a tick of 16 rounds on w wires lasts at least 16 · 7.2 ms · w."""
+
+
+def serve_constants(nn: bool) -> ServeConstants:
+    return NN if nn else CA
+
+
+def ca_dead_ticks(wires: int) -> int:
+    """CA DeadTicks of a module with ``wires`` link wires: >= the dead-limit whatever the timing
+    (one more tick: the first one may have begun just before the silence)."""
+    tick_ms = CA_TICK_ROUNDS * CA_TRY_MIN_MS * max(1, wires)
+    return math.ceil(CA.dead_limit_ms / tick_ms) + 1
+
+
+def nn_dead_ticks() -> int:
+    return NN.dead_limit_ms // NN_TICK_MS
+
+
+def nn_join_ticks() -> int:
+    return NN.power_up_window_ms // NN_TICK_MS
+
+
+# ---- bytes ------------------------------------------------------------------------------------
+
+
+def encode_state(s: int, t: int = 0) -> int:
+    """One state as a self-checking byte: low nibble s, high nibble (15 − s) XOR t.
+
+    The XOR with the frame's t makes a header whose t bit flipped fail the payload check, so a
+    frame can never count for another transition; ``t = 0`` is the plain code (WELCOME's CA
+    fields)."""
     if not 0 <= s <= 15:
         raise ValueError(f"state {s} is not 0..15")
-    return (15 - s) << 4 | s
+    return ((15 - s) ^ (t % TRANSITION_MOD)) << 4 | s
 
 
-def decode_state(b: int) -> int | None:
-    """The state in a payload byte, or None if the check nibble is wrong."""
-    if (b >> 4) + (b & 15) != 15:
+def decode_state(b: int, t: int = 0) -> int | None:
+    """The state in a payload byte, or None if its check nibble is wrong for ``t``."""
+    if b >> 4 != (15 - (b & 15)) ^ (t % TRANSITION_MOD):
         return None
     return b & 15
 
 
 @dataclass(frozen=True)
 class Frame:
-    reply: bool
-    t: int  # transition number mod 8
-    states: tuple[int, ...]
+    """A frame as a module program reads it. ``states``: REQ/REP (CA: one state; NN REQ: one
+    per upstream module and the sender), WELCOME (CA: got + 2·fresh, nb, nbp, state, prev, t;
+    NN: the lead's state)."""
+
+    kind: str  # REQ REP TOOK WAIT BEHIND WELCOME JOIN
+    t: int = 0
+    states: tuple[int, ...] = ()
 
 
-def encode_frame(reply: bool, t: int, states: Sequence[int]) -> bytes:
-    """Header ($A8/$C8 + t mod 8) followed by one self-checking byte per state."""
-    base = REPLY_BASE if reply else REQUEST_BASE
-    return bytes([base + t % TRANSITION_MOD, *(encode_state(s) for s in states)])
+def encode(frame: Frame, *, nn: bool) -> bytes:
+    """The bytes of ``frame`` on the wire (protocol/link.md §3)."""
+    t = frame.t % TRANSITION_MOD
+    if frame.kind == "JOIN":
+        return bytes([JOIN, JOIN])
+    base = {v: k for k, v in KINDS.items()}[frame.kind]
+    if frame.kind in ("TOOK", "WAIT", "BEHIND") or (frame.kind == "REP" and nn):
+        return bytes([base + t])
+    if frame.kind == "WELCOME" and not nn:
+        return bytes([base + t, *(encode_state(s) for s in frame.states)])
+    return bytes([base + t, *(encode_state(s, t) for s in frame.states)])
 
 
-def decode_frame(data: bytes, *, reply: bool, t: int, payload: int) -> Frame | None:
-    """Check a received frame as the module program does: length, header and every check nibble.
+def payload_length(kind: str, *, nn: bool, states: int = 1) -> int:
+    """Payload bytes after the header of ``kind`` (NN REQ: ``states``)."""
+    if kind == "JOIN":
+        return 1
+    if kind in ("TOOK", "WAIT", "BEHIND") or (kind == "REP" and nn):
+        return 0
+    if kind == "WELCOME":
+        return 1 if nn else 6
+    return states if nn and kind == "REQ" else 1
 
-    None means "not received": the module keeps waiting (or, after its deadline, uses the
-    neighbour's last known state).
-    """
-    if len(data) != 1 + payload:
+
+def parse(data: bytes, *, nn: bool, states: int = 1) -> Frame | None:
+    """Check a received frame as the module program does: header, length and every check
+    nibble (CA WELCOME: its last field repeats t). None means "not received"."""
+    if not data:
         return None
-    base = REPLY_BASE if reply else REQUEST_BASE
-    if data[0] != base + t % TRANSITION_MOD:
+    if data[0] == JOIN:
+        return Frame("JOIN") if data == bytes([JOIN, JOIN]) else None
+    kind = KINDS.get(data[0] & 0xF8)
+    if kind is None or (kind in ("TOOK", "WAIT") and not nn) or (kind == "BEHIND" and nn):
         return None
-    states = [decode_state(b) for b in data[1:]]
-    if any(s is None for s in states):
+    t = data[0] & 7
+    if len(data) != 1 + payload_length(kind, nn=nn, states=states):
         return None
-    return Frame(reply, t % TRANSITION_MOD, tuple(s for s in states if s is not None))
+    plain = kind == "WELCOME" and not nn
+    got = [decode_state(b, 0 if plain else t) for b in data[1:]]
+    if any(s is None for s in got):
+        return None
+    values = tuple(s for s in got if s is not None)
+    if plain and values[-1] != t:
+        return None
+    return Frame(kind, t, values)
 
 
 def byte_ms(baud: int = BAUD) -> float:

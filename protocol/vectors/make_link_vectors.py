@@ -3,7 +3,7 @@
     python protocol/vectors/make_link_vectors.py
 
 Built from the rules of protocol/link.md only (no bstool code), like make_vectors.py: the
-frames from §3, the wires, pins, masters and colours from §1 and §2. The vectors are
+serve loop's frames from §3, the wires, pins, masters and colours from §1 and §2. The vectors are
 normative: review the diff; tests/test_compile_link.py checks bstool.wire.link and
 bstool.compile.topology against them.
 """
@@ -16,20 +16,28 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 MODELS = ("ca1d", "ca2dsing", "ca2ddiff", "nnsig", "nnsin")
 
-# §3 Frames
-REQUEST_BASE = 0xA8  # request header: $A8 + (t mod 8)
-REPLY_BASE = 0xC8  # reply header: $C8 + (t mod 8)
+# §3 Frames (the serve loop)
+HEADERS = {"REQ": 0xA8, "REP": 0xC8, "TOOK": 0x98, "WAIT": 0x68, "BEHIND": 0xE8, "WELCOME": 0xD8}
+JOIN = 0xB8  # JOIN is $B8, $B8
+BARE = {"TOOK", "WAIT", "BEHIND"}  # header only (NN: REP too)
 
 
-def state_byte(s: int) -> int:
-    """§3: the high nibble is the complement of the low one, the low nibble the state."""
+def state_byte(s: int, t: int = 0) -> int:
+    """§3: the low nibble is the state, the high one its complement XOR the frame's t."""
     assert 0 <= s <= 15
-    return (15 - s) << 4 | s
+    return ((15 - s) ^ (t % 8)) << 4 | s
 
 
-def frame(reply: bool, t: int, states: list[int]) -> bytes:
-    header = (REPLY_BASE if reply else REQUEST_BASE) + t % 8
-    return bytes([header, *(state_byte(s) for s in states)])
+def frame(kind: str, t: int, states: list[int], *, nn: bool) -> bytes:
+    """§3: the bytes of a frame. CA WELCOME: six plain-coded fields (got + 2 fresh, nb, nbp,
+    state, prev, t); every other payload is coded with the frame's t."""
+    if kind == "JOIN":
+        return bytes([JOIN, JOIN])
+    header = HEADERS[kind] + t % 8
+    if kind in BARE or (nn and kind == "REP"):
+        return bytes([header])
+    code = 0 if kind == "WELCOME" and not nn else t
+    return bytes([header, *(state_byte(s, code) for s in states)])
 
 
 def _hex(data: bytes) -> str:
@@ -118,106 +126,91 @@ def wire_list(model: str, legs: int, modules: int) -> list[dict[str, object]]:
 
 def frames() -> dict[str, object]:
     cases = [
-        (False, 0, [7]),
-        (True, 0, [12]),
-        (False, 5, [0]),
-        (True, 7, [15]),
-        (False, 8, [3]),
-        (False, 3, [1, 4, 9, 15, 0]),
-        (True, 2, []),
-        (False, 1, [10]),
+        ("ca", "REQ", 0, [7]),
+        ("ca", "REP", 0, [12]),
+        ("ca", "REQ", 5, [0]),
+        ("ca", "REP", 7, [15]),
+        ("ca", "REQ", 3, [9]),
+        ("ca", "BEHIND", 2, []),
+        ("ca", "JOIN", 0, []),
+        ("ca", "WELCOME", 4, [3, 9, 8, 2, 1, 4]),
+        ("nn", "REQ", 3, [1, 4, 9, 15, 0]),
+        ("nn", "REQ", 6, [4, 11, 7]),
+        ("nn", "TOOK", 6, []),
+        ("nn", "REP", 6, []),
+        ("nn", "WAIT", 1, []),
+        ("nn", "JOIN", 0, []),
+        ("nn", "WELCOME", 5, [10]),
     ]
     rejected = [
-        ("header of a reply where a request is expected", "request", 0, 1, "C8 87"),
-        ("transition number differs (receiver at t=1)", "request", 1, 1, "A8 87"),
-        ("check nibble wrong (high nibble must be 15 - low nibble)", "request", 0, 1, "A8 77"),
-        ("frame too short (payload missing)", "request", 0, 1, "A8"),
-        ("second state fails its check", "request", 3, 2, "AB 87 88"),
+        ("a REP where a REQ's payload check says t = 0 (header t = 1)", "ca", 1, "C9 78"),
+        ("the check nibble not XORed with t (t = 1)", "ca", 1, "A9 87"),
+        ("check nibble wrong", "ca", 0, "A8 77"),
+        ("frame too short (payload missing)", "ca", 0, "A8"),
+        ("an NN REQ whose second state fails its check", "nn", 3, "AB B7 88"),
+        ("a CA WELCOME whose last field is not its header's t", "ca", 4, "DC C3 69 78 D2 E1 A5"),
+        ("a JOIN with one byte lost", "ca", 0, "B8"),
+        ("TOOK is not a CA frame", "ca", 2, "9A"),
     ]
+    relay = frame("REQ", 6, [4, 11, 7], nn=True)
+    bad_welcome = frame("WELCOME", 4, [3, 9, 8, 2, 1, 5], nn=False)
+    assert bad_welcome.hex(" ").upper() == rejected[5][3]
     return {
-        "format": "bstool.linkvectors/1",
+        "format": "bstool.linkvectors/2",
         "spec": "protocol/link.md",
-        "request_base": REQUEST_BASE,
-        "reply_base": REPLY_BASE,
+        "headers": {**HEADERS, "JOIN": JOIN},
         "frames": [
             {
-                "kind": "reply" if reply else "request",
+                "family": family,
+                "kind": kind,
                 "t": t,
                 "states": states,
-                "bytes": _hex(frame(reply, t, states)),
+                "bytes": _hex(frame(kind, t, states, nn=family == "nn")),
             }
-            for reply, t, states in cases
+            for family, kind, t, states in cases
         ],
         "rejected": [
-            {"why": why, "kind": kind, "t": t, "payload": payload, "bytes": raw}
-            for why, kind, t, payload, raw in rejected
+            {"why": why, "family": family, "states": 2 if "second" in why else 1, "bytes": raw}
+            for why, family, _t, raw in rejected
         ],
         "exchanges": [
             {
-                "description": "Fault-free transition t=4 on the ca1d wire L0.M0 (master, P1) - "
-                "L0.M1 (slave, P0); S_00^4 = 9, S_01^4 = 2.",
+                "description": "CA transition t=4 on the ca1d wire L0.M0 (master, P1) - L0.M1 "
+                "(slave, P0), S_00^4 = 9, S_01^4 = 2; the first REP is lost, the next round's "
+                "REQ(4) is answered again (§4.2).",
                 "steps": [
-                    {
-                        "from": "0.0",
-                        "to": "0.1",
-                        "bytes": _hex(frame(False, 4, [9])),
-                        "note": "request: header $A8 + 4, state 9 as $69",
-                    },
+                    {"from": "0.0", "to": "0.1", "bytes": _hex(frame("REQ", 4, [9], nn=False))},
                     {
                         "from": "0.1",
                         "to": "0.0",
-                        "bytes": _hex(frame(True, 4, [2])),
-                        "note": "reply after the slave's checks, within ReplyWait (4 ms)",
+                        "bytes": _hex(frame("REP", 4, [2], nn=False)),
+                        "lost": [0],
                     },
+                    {"from": "0.0", "to": "0.1", "bytes": _hex(frame("REQ", 4, [9], nn=False))},
+                    {"from": "0.1", "to": "0.0", "bytes": _hex(frame("REP", 4, [2], nn=False))},
                 ],
                 "result": {"0.0 knows 0.1": 2, "0.1 knows 0.0": 9},
+            },
+            {
+                "description": "CA: the slave L0.M1 moved on to t=5 (prev = 2) before its "
+                "master got the REP(4): REQ(4) is answered with REP(4) carrying prev (§4.2).",
+                "steps": [
+                    {"from": "0.0", "to": "0.1", "bytes": _hex(frame("REQ", 4, [9], nn=False))},
+                    {"from": "0.1", "to": "0.0", "bytes": _hex(frame("REP", 4, [2], nn=False))},
+                ],
+                "result": {"0.0 knows 0.1": 2},
             },
             {
                 "description": "NN relay at t=6 on the wire L2.M2 (master, P1) - L2.M3 (slave, "
                 "P0): the master sends the t+1 states of modules 0..2 = [4, 11, 7]; the slave "
-                "stores them in up(0..2) and acknowledges with a bare header.",
+                "takes them (TOOK), the master shows S^7, and once the slave shows it too its "
+                "answer to the next REQ(6) is REP(6) (§4.6).",
                 "steps": [
-                    {
-                        "from": "2.2",
-                        "to": "2.3",
-                        "bytes": _hex(frame(False, 6, [4, 11, 7])),
-                    },
-                    {"from": "2.3", "to": "2.2", "bytes": _hex(frame(True, 6, []))},
+                    {"from": "2.2", "to": "2.3", "bytes": _hex(relay)},
+                    {"from": "2.3", "to": "2.2", "bytes": _hex(frame("TOOK", 6, [], nn=True))},
+                    {"from": "2.2", "to": "2.3", "bytes": _hex(relay)},
+                    {"from": "2.3", "to": "2.2", "bytes": _hex(frame("REP", 6, [], nn=True))},
                 ],
-            },
-            {
-                "description": "Lost reply at t=4 on the ca1d wire L0.M0 (master) - L0.M1 "
-                "(slave): the reply's header is dropped on the wire, the master retries with the "
-                "same request, the slave (still lingering, §4) stores the same state again and "
-                "sends the same reply.",
-                "steps": [
-                    {
-                        "from": "0.0",
-                        "to": "0.1",
-                        "bytes": _hex(frame(False, 4, [9])),
-                        "note": "request",
-                    },
-                    {
-                        "from": "0.1",
-                        "to": "0.0",
-                        "bytes": _hex(frame(True, 4, [2])),
-                        "note": "reply; the master receives only $D2: not a reply header",
-                        "lost": [0],
-                    },
-                    {
-                        "from": "0.0",
-                        "to": "0.1",
-                        "bytes": _hex(frame(False, 4, [9])),
-                        "note": "retry at most ReplyBase + a few statements after $D2",
-                    },
-                    {
-                        "from": "0.1",
-                        "to": "0.0",
-                        "bytes": _hex(frame(True, 4, [2])),
-                        "note": "the same reply; then the slave lingers again and hears silence",
-                    },
-                ],
-                "result": {"0.0 knows 0.1": 2, "0.1 knows 0.0": 9},
             },
         ],
     }
