@@ -18,6 +18,7 @@ from bstool.controllers import Controller, load_controller
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from hil_mock.check import TwinCheck, check, reference_simulator
+from hil_mock.outage import Outage, outage_reference, outages
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import CHUNK_STEPS, RobotTwin
 from hil_mock.schedule_extract import Recorder, stamp_timed_simulator
@@ -113,8 +114,9 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
     finally:
         if fleet is not None:
             fleet.close()
+    outs = outages(twin)
     reference = (
-        ctrl.states(options.transitions, failed=list(options.failed), failed_at=dict(options.die))
+        outage_reference(ctrl, options.transitions, outs, options.failed, options.die)
         if ctrl is not None
         else None
     )
@@ -127,8 +129,15 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
     if reference is not None and ctrl is not None:
         reference, limited = _documented_limit(build, ctrl, reference, options)
     report = check(
-        build, result, reference, options.transitions, sim_distance, stamp_path=stamp_path
+        build,
+        result,
+        reference,
+        options.transitions,
+        sim_distance,
+        stamp_path=stamp_path,
+        outages=outs,
     )
+    report.notes += outage_notes(outs)
     if limited:
         report.notes.append(
             "modules after two neighbouring dead NN modules ("
@@ -148,6 +157,22 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         twin_seconds,
         perturbations=twin.perturb.report(),
     )
+
+
+def outage_notes(outs: list[Outage]) -> list[str]:
+    """One line per power-off: the reference its module was compared with, and why."""
+    notes = []
+    for o in outs:
+        back = "still off at the end" if o.booted_s is None else f"back at {o.booted_s:g} s"
+        if o.long:
+            why = "its neighbours went on without it (longer than their dead-limit)"
+        else:
+            why = "its neighbours waited for it (shorter than their dead-limit)"
+        notes.append(
+            f"reset of {o.module.label} at {o.off_s:g} s ({back}): {why}; reference "
+            f"{o.reference_text()}"
+        )
+    return notes
 
 
 def _stamp_timed_path(twin: Recorder, transitions: int) -> np.ndarray | None:
