@@ -196,7 +196,8 @@ def cut_reference(
     heard it: dead from power-up for that end only), every other neighbour as healthy."""
     from bstool.controllers.reference import ca_neighbours, rule_index
 
-    rules = [ctrl.rule] if ctrl.rule is not None else [ctrl.control_rule, ctrl.leg_rule]
+    both = [ctrl.rule] if ctrl.rule is not None else [ctrl.control_rule, ctrl.leg_rule]
+    rules = [r for r in both if r is not None]
     n, m = ctrl.legs, ctrl.modules
     r0 = ctrl.initial_states.tolist()
     blind = {(a.leg, a.module, b.leg, b.module) for a, b in cuts}
