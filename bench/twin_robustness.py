@@ -8,8 +8,8 @@ runs the twin without physics (``RobotTwin(perturb=...)``, i.e. ``bstool twin --
 for every case: timing scale 0.5-3, timing spread ±20 %, clock spread ±2 %, start spread
 0-3 s, the stamp serial item time, a single reset of a lead (0.0) and of a middle module (2.3)
 for 0.1-0.8 s, 1 % byte noise (``--link-noise``) and combinations. Each module's states are
-compared with the healthy reference ``controller.states(T)`` (for resets too: that is what a
-protocol that survives them must give). Prints one markdown table, a cell per model and case:
+compared with the healthy reference ``controller.states(T)``, or for a reset with what the
+record says happened (below). Prints one markdown table, a cell per model and case:
 ``exact/total`` (modules whose whole sequence equals the reference / modules), the mean
 transition period (s) and the longest servo gap (ms; the reset module's own outage left out),
 ``!`` when some module stalled (made fewer than T transitions in the time limit). With
