@@ -4,14 +4,17 @@ its neighbours go on without it (long), and if long, the reference it is compare
 A neighbour N of the reset module c waits for c's state in one transition W_N: the one it was
 showing at the power-off, or the next (when it still got c's state for that one). Of the two,
 W_N is the one that lasted longer after the power-off (a wait for a silent neighbour against an
-ordinary transition; both observed, no timing estimate). N went on *without* c when it left W_N
-before c booted again: c was dead for N from T_N, the transition whose state of c N held
-(CA: W_N − 1, N waited for S^(W_N); NN: W_N, N waited for S^(W_N + 1) from upstream; only c's
-downstream neighbours read its state). c rejoined at T2, the transition its record restarts
-at (:meth:`hil_mock.robot.RobotTwin._rejoin`; for an NN non-lead one before: it shows eq. 11
-on the upstream states it rejoins with at once, R^(T2 + 1)). The reference is then
-``states(failed_at={c: T}, rejoin={c: T2})`` (docs/controllers.md "Rejoin"); with no neighbour
-going on, it is the healthy one. docs/twin.md, "A long outage".
+ordinary transition; both observed, no timing estimate). N holds c's state of T_N (CA: W_N − 1,
+N waited for S^(W_N); NN: W_N, N waited for S^(W_N + 1) from upstream; only c's downstream
+neighbours read its state). c's record restarts at the transition it rejoined at
+(:meth:`hil_mock.robot.RobotTwin._rejoin`). The outage was **long** (its neighbours went on
+without it) when a neighbour left W_N before c booted again, or when c came back past the last
+state it had shown, or with another state than it had shown there (CA: it took the state its
+neighbours held for it), or, for an NN non-lead (which shows eq. 11 on the REQ it rejoins with
+at once, R^(T2 + 1)), at a T2 past the state its downstream held. The reference is then
+``states(failed_at={c: T}, rejoin={c: T2})`` (docs/controllers.md "Rejoin"), T the held T_N
+(the earliest if they differ); otherwise the healthy one. docs/twin.md, "Which reference a
+reset is compared with".
 """
 
 from __future__ import annotations
@@ -82,25 +85,33 @@ class Outage:
 def outages(twin: RobotTwin) -> list[Outage]:
     """Every power-off of the run, in time order."""
     out = []
+    lag = 0 if twin._nn else 1
     for mid, offs in twin.perturb.offs.items():
         boots = twin.perturb.boots.get(mid, [])
         rec = twin.records[mid]
         for k, off_s in enumerate(offs):
             booted = boots[k] if k < len(boots) else None
-            held = {
-                n: t
-                for n in readers(twin, mid)
-                if (t := _held(twin.records[n].times_ns, off_s, booted, lag=0 if twin._nn else 1))
-                is not None
+            waits = {
+                n: w for n in readers(twin, mid) if (w := _wait(twin.records[n].times_ns, off_s))
             }
-            rejoin = at = None
-            if held and k < len(rec.rejoined):
-                at = rec.rejoined[k]
+            back = math.inf if booted is None else booted * NS
+            went_on = {n: w - lag for n, (w, left) in waits.items() if left < back}
+            if k >= len(rec.rejoined):  # not back (or still joining) at the end of the run
+                out.append(Outage(mid, off_s, booted, went_on))
+                continue
+            at = rec.rejoined[k]
+            before = rec.before[k]
+            if twin._nn and mid.module > 0:
                 # an NN non-lead shows eq. 11 on the REQ it rejoins with at once: that state is
                 # R^(T2 + 1) of the reference, the held one R^T2 was never shown
-                first = at - (1 if twin._nn and mid.module > 0 else 0)
-                rejoin = max(first, min(held.values()))
-            out.append(Outage(mid, off_s, booted, held, rejoin, at))
+                t2 = at - 1
+                held = {n: w for n, (w, _) in waits.items() if w < t2}
+            else:  # long: it rejoined past what it had shown, or not with the state it showed
+                shown = at < len(before) and before[at] == rec.states[at]
+                held = {} if shown else {n: w - 1 for n, (w, _) in waits.items() if w - 1 < at}
+                t2 = at
+            held = {**went_on, **held}
+            out.append(Outage(mid, off_s, booted, held, t2 if held else None, at))
     return sorted(out, key=lambda o: o.off_s)
 
 
@@ -112,10 +123,10 @@ def readers(twin: RobotTwin, mid: ModuleId) -> list[ModuleId]:
     return sorted(peers)
 
 
-def _held(times_ns: list[int], off_s: float, booted_s: float | None, lag: int) -> int | None:
-    """T_N of a neighbour with these transition times, or None if it waited for the module."""
+def _wait(times_ns: list[int], off_s: float) -> tuple[int, float] | None:
+    """(W_N, when N left it, ns) of a neighbour with these transition times: of the transition
+    it showed at the power-off and the next, the one that lasted longer after it."""
     off = off_s * NS
-    back = math.inf if booted_s is None else booted_s * NS
     shown = [i for i, t in enumerate(times_ns) if 0 <= t <= off]
     if not shown:
         return None
@@ -128,7 +139,7 @@ def _held(times_ns: list[int], off_s: float, booted_s: float | None, lag: int) -
         return end(w) - max(times_ns[w], off) if w < len(times_ns) else -math.inf
 
     w = max((s, s + 1), key=waited)
-    return w - lag if end(w) < back else None
+    return w, end(w)
 
 
 def outage_reference(

@@ -199,6 +199,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         anchor = max(near) if near else end
         at = min((t for t in range(max(0, anchor - 4), anchor + 5) if t % 8 == tn),
                  key=lambda t: abs(t - anchor))  # fmt: skip
+        rec.before.append(list(rec.states))
         del rec.states[at:]
         del rec.times_ns[at:]
         pad = at - len(rec.states)

@@ -28,6 +28,7 @@ class ModuleRecord:
     last_tn: int | None = None
     rejoining: bool = False  # booted again (--reset): re-aligned at its next servo pulse
     rejoined: list[int] = field(default_factory=list)  # the transitions it rejoined at
+    before: list[list[int]] = field(default_factory=list)  # its states before each rejoin
 
 
 @dataclass
