@@ -8,18 +8,21 @@ runs the twin without physics (``RobotTwin(perturb=...)``, i.e. ``bstool twin --
 for every case: timing scale 0.5-3, timing spread ±20 %, clock spread ±2 %, start spread
 0-3 s, the stamp serial item time, a single reset of a lead (0.0) and of a middle module (2.3)
 for 0.1-0.8 s, 1 % byte noise (``--link-noise``) and combinations. Each module's states are
-compared with the healthy reference ``controller.states(T)`` (for resets too: that is what a
-protocol that survives them must give). Prints one markdown table, a cell per model and case:
+compared with the healthy reference ``controller.states(T)``, or for a reset with what the
+record says happened (below). Prints one markdown table, a cell per model and case:
 ``exact/total`` (modules whose whole sequence equals the reference / modules), the mean
 transition period (s) and the longest servo gap (ms; the reset module's own outage left out),
 ``!`` when some module stalled (made fewer than T transitions in the time limit). With
 ``--seeds N`` every case with random draws (spreads, noise) runs seeds seed..seed+N-1: the cell
 sums the exact modules over the runs, averages the periods and takes the longest gap.
+``--only TEXT`` keeps the cases whose name contains TEXT.
 ``--quick`` runs a smoke subset (two models, eight cases, T = 8); ``--noise-on-top`` adds every
 case without noise once more with 1 % byte noise (the issue: "alone and combined, with 1 % byte
-noise on top"). Every reset here is shorter than the dead-limit (1.5 s, protocol/link.md §4.5), so
-the healthy reference is the one a protocol that survives resets must give; a longer outage is
-compared with ``controller.states(T, failed_at=..., rejoin=...)`` (docs/controllers.md).
+noise on top"). The resets of 0.1-0.8 s are shorter than the dead-limit (1.5 s, protocol/link.md):
+the healthy reference. The long outages (2 and 3 s, at 2 s, after the first transitions) are
+compared with what the record says happened (hil_mock/outage.py): healthy if the neighbours
+waited, else ``controller.states(T, failed_at={c: T0}, rejoin={c: T2})`` (docs/controllers.md
+"Rejoin").
 """
 
 from __future__ import annotations
@@ -36,11 +39,13 @@ import numpy as np
 from bstool.buildfile import Build
 from bstool.builtin import MODELS, builtin_controller
 from bstool.compile import compile_controller
-from bstool.controllers import load_controller
+from bstool.controllers import Controller, load_controller
+from hil_mock.outage import compared_states, outage_reference, outages
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
 
-RESET_AT_S = 5.0  # well after the first transitions (the join; about 0.5 s unperturbed)
+RESET_AT_S = 2.0  # after the first transitions (the join; about 0.5 s unperturbed), before T = 12
+LONG_AT_S = 2.0  # a long outage early enough that the module is back before T = 12
 NOISE = 0.01
 
 
@@ -88,6 +93,10 @@ def _cases(quick: bool) -> list[tuple[str, Perturbation, float]]:
     for module, where in (("0.0", "lead"), ("2.3", "middle")):
         out += [(f"reset {where} {module} for {off:g} s", reset(module, off), 0.0)
                 for off in (0.1, 0.4, 0.8)]  # fmt: skip
+    for module, where in (("0.0", "lead"), ("2.3", "middle")):
+        out += [(f"long outage {where} {module} for {off:g} s",
+                 P(resets=(Reset(module, LONG_AT_S, off),)), 0.0)
+                for off in (2.0, 3.0)]  # fmt: skip
     out.append(("noise 1 %", P(), NOISE))
     out.append(("scale 2 + spread ±20 %", P(timing_scale=2.0, timing_spread=0.2), 0.0))
     out.append(("clock ±1 % + item 50 us", P(clock_spread=0.01, item_time_us=50.0), 0.0))
@@ -98,30 +107,30 @@ def _cases(quick: bool) -> list[tuple[str, Perturbation, float]]:
 
 
 def run_once(
-    build: Build, want: np.ndarray, T: int, p: Perturbation, noise: float
+    build: Build, ctrl: Controller, T: int, p: Perturbation, noise: float
 ) -> tuple[int, float, float, bool]:
     """(exact modules, mean period s, longest servo gap s, stalled) of one run."""
     twin = RobotTwin(build, noise=noise, seed=p.seed, physics=False, perturb=p)
     result = twin.run(T)
-    got = result.state_array(build.legs, build.modules, T)
-    exact = sum(
-        bool(np.array_equal(got[:, i, j], want[:, i, j]))
-        for i in range(build.legs)
-        for j in range(build.modules)
-    )
+    outs = outages(twin)
+    want = outage_reference(ctrl, T, outs)
+    got = compared_states(result.states, want, outs)
+    exact = sum(seq[: T + 1] == want[:, m.leg, m.module].tolist() for m, seq in got.items())
     outage = twin.perturb.reset_modules()
     gaps = [g for m, g in result.servo_gaps.items() if m not in outage]
-    return exact, result.period_stats()[0], max(gaps), bool(result.stalled)
+    off = {o.module for o in outs if o.long and o.rejoin is None}  # still off: dead, not stalled
+    stalled = [m for m in result.stalled if m not in off]
+    return exact, result.period_stats()[0], max(gaps), bool(stalled)
 
 
 def run_case(
-    build: Build, want: np.ndarray, T: int, p: Perturbation, noise: float, seeds: list[int]
+    build: Build, ctrl: Controller, T: int, p: Perturbation, noise: float, seeds: list[int]
 ) -> str:
     """One table cell, over ``seeds`` if the case draws anything (else one run counts for
     all)."""
     drawn = noise > 0 or p.timing_spread > 0 or p.clock_spread > 0 or p.start_spread > 0
     runs = [
-        run_once(build, want, T, replace(p, seed=s), noise) for s in (seeds if drawn else seeds[:1])
+        run_once(build, ctrl, T, replace(p, seed=s), noise) for s in (seeds if drawn else seeds[:1])
     ]
     k = len(seeds) // len(runs)
     exact = k * sum(r[0] for r in runs)
@@ -142,10 +151,11 @@ def main() -> None:
     parser.add_argument(
         "--noise-on-top", action="store_true", help="every case again with 1 %% byte noise"
     )
+    parser.add_argument("--only", default="", help="only the cases whose name contains this")
     args = parser.parse_args()
     models = args.models if not args.quick or args.models != list(MODELS) else ["ca1d", "nnsin"]
     T = args.transitions or (8 if args.quick else 12)
-    table = cases(args.quick, args.noise_on_top)
+    table = [c for c in cases(args.quick, args.noise_on_top) if args.only in c[0]]
     cells: dict[tuple[str, str], str] = {}
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -154,10 +164,10 @@ def main() -> None:
             out = Path(tmp) / model
             compile_controller(source, out)
             build = load_build(out)
-            want = load_controller(source).states(T)
+            ctrl = load_controller(source)
             for name, p, noise in table:
                 seeds = list(range(args.seed, args.seed + args.seeds))
-                cells[model, name] = run_case(build, want, T, p, noise, seeds)
+                cells[model, name] = run_case(build, ctrl, T, p, noise, seeds)
                 print(f"{model:9} {name:55} {cells[model, name]}", file=sys.stderr, flush=True)
     seeds = f"{args.seed}..{args.seed + args.seeds - 1}"
     print(f"\nT = {T}, seeds {seeds}; cell: exact modules/total · mean period s · longest "

@@ -4,6 +4,7 @@ with ``bstool simulate``, the timing with the build's manifest estimates."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -14,6 +15,7 @@ from bstool.moduleid import ModuleId
 from bstool.sim.simulator import Simulator
 from bstool.wire import announce
 from hil_mock.body import robot_spec
+from hil_mock.outage import Outage, compared_states
 from hil_mock.twin_result import TwinResult
 
 
@@ -38,6 +40,9 @@ class TwinCheck:
     # physics, ``bstool simulate --build``): its distance and the largest path difference
     stamp_distance: float | None = None
     stamp_path_diff: float | None = None
+    # --reset: each power-off, the reference it was compared with (healthy, or failed_at T +
+    # rejoin T2 read from the record: hil_mock/outage.py)
+    outages: list[dict[str, Any]] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         out = dict(self.__dict__)
@@ -69,13 +74,18 @@ def check(
     sim_distance: float | None = None,
     *,
     stamp_path: np.ndarray | None = None,
+    outages: Sequence[Outage] = (),
 ) -> TwinCheck:
-    """``reference``: the (T+1, n, m) states of ``bstool states`` (with the same failures)."""
+    """``reference``: the (T+1, n, m) states of ``bstool states`` (with the same failures, and
+    ``failed_at`` + ``rejoin`` for the long ``outages``)."""
     mismatched: list[ModuleId] = []
     first = None
+    off = {o.module for o in outages if o.long and o.rejoin is None}  # off at the end: dead
+    stalled = [m for m in result.stalled if m not in off]
     if reference is not None:
-        for mid, seq in result.states.items():
-            want = reference[: transitions + 1, mid.leg, mid.module].tolist()
+        ref = reference[: transitions + 1]
+        for mid, seq in compared_states(result.states, ref, outages).items():
+            want = ref[:, mid.leg, mid.module].tolist()
             if seq[: transitions + 1] != want:
                 mismatched.append(mid)
                 if first is None:
@@ -93,7 +103,7 @@ def check(
     gaps = list(result.servo_gaps.values())
     return TwinCheck(
         transitions=transitions,
-        states_equal=reference is not None and not mismatched and not result.stalled,
+        states_equal=reference is not None and not mismatched and not stalled,
         mismatched=mismatched,
         first_mismatch=first,
         twin_distance=result.distance,
@@ -104,10 +114,11 @@ def check(
         period_estimate=max(periods) if periods else math.nan,
         servo_gap_max=max(gaps) if gaps else math.nan,
         servo_gap_estimate=max(estimates) if estimates else math.nan,
-        stalled=list(result.stalled),
+        stalled=stalled,
         announcements_ok=ok,
         stamp_distance=_distance(stamp_path),
         stamp_path_diff=_path_diff(stamp_path, result.path),
+        outages=[o.to_json() for o in outages],
     )
 
 

@@ -27,7 +27,7 @@ from hil_mock.perturb import Perturbation, PerturbRun
 from hil_mock.schedule import CHUNK_STEPS, Scheduler
 from hil_mock.stamp import Stamp, StampIO
 from hil_mock.stamp.clock import NOMINAL
-from hil_mock.twin_result import NS, ModuleRecord, TwinResult, ram_reader
+from hil_mock.twin_result import NS, OFF_STATE, ModuleRecord, TwinResult, ram_reader
 
 __all__ = [
     "CHUNK_STEPS",
@@ -188,7 +188,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         state_of, tn_of = self._readers[mid]
         tn = tn_of(stamp)
         if rec.rejoining:
-            self._rejoin(rec, tn, state_of(stamp), stamp.t)
+            self._rejoin(mid, tn, state_of(stamp), stamp.t)
             return
         if tn != rec.last_tn:
             rec.last_tn = tn
@@ -197,22 +197,33 @@ class RobotTwin(Body, Links, Faults, Scheduler):
             if mid == self.reference and self.sim is not None:
                 self.path.append(self._disc_xy())
 
-    @staticmethod
-    def _rejoin(rec: ModuleRecord, tn: int, state: int, t_ns: int) -> None:
+    def _rejoin(self, mid: ModuleId, tn: int, state: int, t_ns: int) -> None:
         """The first pulse of a module booted again (``--reset``): it shows the state of the
-        transition ``tn`` (mod 8) it rejoined at, taken as the one nearest the end of its record
-        (neighbours are at most a transition or two apart, docs/twin.md); the record restarts
-        there. A program still joining (tn > 7) is not recorded."""
+        transition ``tn`` (mod 8) it rejoined at, taken as the one nearest its neighbours' latest
+        transitions (they are at most two apart from it, docs/twin.md; its own record's end when
+        every neighbour is gone). The record restarts there; transitions it skipped while it was
+        off (a long outage: its neighbours went on without it) are padded with ``OFF_STATE``
+        and no time. A program still joining (tn > 7) is not recorded."""
         if tn > 7:
             return
+        rec = self.records[mid]
         end = len(rec.states)
-        at = max(t for t in range(max(0, end - 8), end + 1) if t % 8 == tn)
+        peers = {p for (m, _), ends in self.wires.items() if m == mid for p, _ in ends}
+        near = [len(self.records[p].states) - 1 for p in peers if p in self.stamps]
+        anchor = max(near) if near else end
+        at = min((t for t in range(max(0, anchor - 4), anchor + 5) if t % 8 == tn),
+                 key=lambda t: abs(t - anchor))  # fmt: skip
+        rec.before.append(list(rec.states))
         del rec.states[at:]
         del rec.times_ns[at:]
+        pad = at - len(rec.states)
+        rec.states += [OFF_STATE] * pad
+        rec.times_ns += [-1] * pad
         rec.states.append(state)
         rec.times_ns.append(t_ns)
         rec.last_tn = tn
         rec.rejoining = False
+        rec.rejoined.append(at)
 
     def run(
         self,
@@ -284,7 +295,9 @@ class RobotTwin(Body, Links, Faults, Scheduler):
             else:
                 states[mid] = rec.states[: transitions + 1]
             periods[mid] = [
-                (b - a) / NS for a, b in zip(rec.times_ns[1:], rec.times_ns[2:], strict=False)
+                (b - a) / NS
+                for a, b in zip(rec.times_ns[1:], rec.times_ns[2:], strict=False)
+                if a >= 0 and b >= 0  # not across a reset module's skipped transitions
             ][: max(0, transitions - 1)]
             if len(states[mid]) < transitions + 1:
                 stalled.append(mid)

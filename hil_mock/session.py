@@ -19,6 +19,7 @@ from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from bstool.timingfile import TimingModel
 from hil_mock.check import TwinCheck, check, reference_simulator
+from hil_mock.outage import Outage, cut_reference, outage_reference, outages
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import CHUNK_STEPS, RobotTwin
 from hil_mock.schedule_extract import Recorder, stamp_timed_simulator
@@ -116,11 +117,8 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
     finally:
         if fleet is not None:
             fleet.close()
-    reference = (
-        ctrl.states(options.transitions, failed=list(options.failed), failed_at=dict(options.die))
-        if ctrl is not None
-        else None
-    )
+    outs = outages(twin)
+    reference = _reference(ctrl, options, outs) if ctrl is not None else None
     sim_distance = None
     stamp_path = None
     if reference is not None and options.physics:
@@ -131,8 +129,17 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         reference, limited = _documented_limit(build, ctrl, reference, options)
         _hold_frozen(result, limited, options.transitions)
     report = check(
-        build, result, reference, options.transitions, sim_distance, stamp_path=stamp_path
+        build,
+        result,
+        reference,
+        options.transitions,
+        sim_distance,
+        stamp_path=stamp_path,
+        outages=outs,
     )
+    report.notes += outage_notes(outs)
+    if options.cut and reference is not None:
+        report.notes.append(_cut_note(ctrl, options, outs))
     if limited:
         report.notes.append(
             "modules after two neighbouring dead NN modules ("
@@ -152,6 +159,43 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         twin_seconds,
         perturbations=twin.perturb.report(),
     )
+
+
+def _reference(ctrl: Controller, options: TwinOptions, outs: list[Outage]) -> np.ndarray:
+    """``bstool states`` with the run's failures and long outages; a CA run whose only fault is
+    ``--cut`` is compared with each end reading the other's R^0 (:func:`cut_reference`)."""
+    from bstool.controllers import NN_MODELS
+
+    faults = options.failed or options.die or any(o.long for o in outs)
+    if options.cut and ctrl.model not in NN_MODELS and not faults:
+        return cut_reference(ctrl, options.transitions, list(options.cut))
+    return outage_reference(ctrl, options.transitions, outs, options.failed, options.die)
+
+
+def _cut_note(ctrl: Controller | None, options: TwinOptions, outs: list[Outage]) -> str:
+    cuts = ", ".join(f"{a.label}-{b.label}" for a, b in options.cut)
+    from bstool.controllers import NN_MODELS
+
+    faults = options.failed or options.die or any(o.long for o in outs)
+    if ctrl is not None and ctrl.model not in NN_MODELS and not faults:
+        return f"cut {cuts}: compared with each end reading the other's R^0 for ever"
+    return f"cut {cuts}: compared with the reference without the cut (none describes it here)"
+
+
+def outage_notes(outs: list[Outage]) -> list[str]:
+    """One line per power-off: the reference its module was compared with, and why."""
+    notes = []
+    for o in outs:
+        back = "still off at the end" if o.booted_s is None else f"back at {o.booted_s:g} s"
+        if o.long:
+            why = "its neighbours went on without it (longer than their dead-limit)"
+        else:
+            why = "its neighbours waited for it (shorter than their dead-limit)"
+        notes.append(
+            f"reset of {o.module.label} at {o.off_s:g} s ({back}): {why}; reference "
+            f"{o.reference_text()}"
+        )
+    return notes
 
 
 def _stamp_timed_path(twin: Recorder, transitions: int) -> np.ndarray | None:

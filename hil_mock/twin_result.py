@@ -14,6 +14,7 @@ from bstool.moduleid import ModuleId
 from hil_mock.stamp import Stamp
 
 NS = 1_000_000_000
+OFF_STATE = -2  # a transition a reset module skipped while it was off (no state shown)
 
 
 @dataclass
@@ -26,6 +27,8 @@ class ModuleRecord:
     times_ns: list[int] = field(default_factory=list)
     last_tn: int | None = None
     rejoining: bool = False  # booted again (--reset): re-aligned at its next servo pulse
+    rejoined: list[int] = field(default_factory=list)  # the transitions it rejoined at
+    before: list[list[int]] = field(default_factory=list)  # its states before each rejoin
 
 
 @dataclass

@@ -19,6 +19,7 @@ from bstool.buildfile import Build
 from bstool.builtin import MODELS, builtin_controller
 from bstool.compile import compile_controller
 from bstool.controllers import load_controller
+from bstool.moduleid import ModuleId
 from hil_mock.check import settle_seconds
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
@@ -97,15 +98,31 @@ def test_every_module_equals_the_healthy_reference(
 
 def test_a_rebooted_module_s_record_restarts_at_the_transition_it_rejoins() -> None:
     """``RobotTwin._rejoin``: the first pulse after a boot shows transition ``tn`` (mod 8),
-    placed nearest the end of the record (docs/twin.md, "Perturbations")."""
-    from hil_mock.twin_result import ModuleRecord
+    placed nearest its neighbours' latest transitions, or the end of its record without any
+    (docs/twin.md, "Perturbations"); transitions skipped while off are padded."""
+    from types import SimpleNamespace
 
-    rec = ModuleRecord(states=list(range(10)), times_ns=list(range(10)), rejoining=True)
-    RobotTwin._rejoin(rec, 9 % 8, 42, 99)  # rejoined at its last transition, 9
+    from hil_mock.twin_result import OFF_STATE, ModuleRecord
+
+    me, peer = ModuleId(0, 1), ModuleId(0, 2)
+
+    def rejoin(tn: int, peer_at: int | None) -> ModuleRecord:
+        rec = ModuleRecord(states=list(range(10)), times_ns=list(range(10)), rejoining=True)
+        other = ModuleRecord(states=list(range((peer_at or 0) + 1)))
+        twin = SimpleNamespace(
+            records={me: rec, peer: other},
+            wires={(me, 1): [(peer, 2)]},
+            stamps={peer: None} if peer_at is not None else {},
+        )
+        RobotTwin._rejoin(twin, me, tn, 42, 99)  # type: ignore[arg-type]
+        return rec
+
+    rec = rejoin(9 % 8, None)  # rejoined at its last transition, 9
     assert rec.states == [*range(9), 42] and not rec.rejoining and rec.last_tn == 1
-    rec = ModuleRecord(states=list(range(10)), times_ns=list(range(10)), rejoining=True)
-    RobotTwin._rejoin(rec, 10 % 8, 42, 99)  # one transition on
-    assert rec.states == [*range(10), 42]
-    rec = ModuleRecord(states=list(range(10)), times_ns=list(range(10)), rejoining=True)
-    RobotTwin._rejoin(rec, 12, 42, 99)  # still joining: nothing recorded
+    assert rec.rejoined == [9]
+    assert rejoin(10 % 8, None).states == [*range(10), 42]  # one transition on
+    assert rejoin(10 % 8, 10).states == [*range(10), 42]
+    rec = rejoin(13 % 8, 14)  # a long outage: its neighbour went on to 14
+    assert rec.states == [*range(10), *[OFF_STATE] * 3, 42] and rec.times_ns[10:13] == [-1] * 3
+    rec = rejoin(12, None)  # still joining: nothing recorded
     assert rec.states == list(range(10)) and rec.rejoining

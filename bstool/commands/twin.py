@@ -184,7 +184,7 @@ def _print(report: TwinCheck, result: TwinResult) -> None:
     T = report.transitions
     if report.sim_distance is not None or report.mismatched or report.states_equal:
         verdict = "EQUAL to" if report.states_equal else "DIFFERENT from"
-        within = " (with the limit below)" if report.notes else ""
+        within = " (with the notes below)" if report.notes else ""
         click.echo(
             f"states:     every module's {T + 1} states are {verdict} `bstool states`{within}"
         )

@@ -1,0 +1,227 @@
+"""A ``--reset`` outage read from the twin's record: was the module waited for (short) or did
+its neighbours go on without it (long), and if long, the reference it is compared with.
+
+A neighbour N of the reset module c waits for c's state in one transition W_N: the one it was
+showing at the power-off, or the next (when it still got c's state for that one). Of the two,
+W_N is the one that lasted longer after the power-off (a wait for a silent neighbour against an
+ordinary transition; both observed, no timing estimate). N holds c's state of T_N (CA: W_N − 1,
+N waited for S^(W_N); NN: W_N, N waited for S^(W_N + 1) from upstream; only c's downstream
+neighbours read its state). c's record restarts at the transition it rejoined at
+(:meth:`hil_mock.robot.RobotTwin._rejoin`). The outage was **long** (its neighbours went on
+without it) when a neighbour left W_N before c booted again, or when c came back past the last
+state it had shown, or with another state than it had shown there (CA: it took the state its
+neighbours held for it), or, for an NN non-lead (which shows eq. 11 on the REQ it rejoins with
+at once, R^(T2 + 1)), at a T2 past the state its downstream held. The reference is then
+``states(failed_at={c: T}, rejoin={c: T2})`` (docs/controllers.md "Rejoin"), T the held T_N
+(the earliest if they differ); otherwise the healthy one. docs/twin.md, "Which reference a
+reset is compared with".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bstool.controllers import Controller
+from bstool.moduleid import ModuleId
+from hil_mock.twin_result import NS, OFF_STATE
+
+RobotTwin = Any  # a hil_mock.robot.RobotTwin after its run (it imports this module's users)
+
+
+@dataclass(frozen=True)
+class Outage:
+    """One power-off of a reset module and what its neighbours did about it."""
+
+    module: ModuleId
+    off_s: float
+    booted_s: float | None  # None: still off at the end of the run
+    held: dict[ModuleId, int] = field(default_factory=dict)  # N -> T_N, for N that went on
+    rejoin: int | None = None  # T2 (None: not back within the run)
+    rejoined_at: int | None = None  # where its record restarts (T2, NN non-lead T2 + 1)
+
+    @property
+    def long(self) -> bool:
+        return bool(self.held)
+
+    @property
+    def consistent(self) -> bool:
+        """Every neighbour that went on held c's state of the same transition."""
+        return len(set(self.held.values())) <= 1
+
+    @property
+    def failed_at(self) -> int | None:
+        """T: the transition whose state the neighbours held (the earliest, if they differ)."""
+        return min(self.held.values()) if self.held else None
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "module": str(self.module),
+            "off_s": self.off_s,
+            "booted_s": self.booted_s,
+            "long": self.long,
+            "held": {str(m): t for m, t in self.held.items()},
+            "failed_at": self.failed_at,
+            "rejoin": self.rejoin,
+            "reference": self.reference_text(),
+        }
+
+    def reference_text(self) -> str:
+        if not self.long:
+            return "healthy (waited for)"
+        ref = f"--fail-at {self.module.label}@{self.failed_at}"
+        if self.rejoin is not None:
+            ref += f" --rejoin {self.module.label}@{self.rejoin}"
+        if not self.consistent:
+            held = ", ".join(f"{m.label} S^{t}" for m, t in sorted(self.held.items()))
+            ref += f" (neighbours disagree: {held})"
+        return ref
+
+
+def outages(twin: RobotTwin) -> list[Outage]:
+    """Every power-off of the run, in time order."""
+    out = []
+    lag = 0 if twin._nn else 1
+    for mid, offs in twin.perturb.offs.items():
+        boots = twin.perturb.boots.get(mid, [])
+        rec = twin.records[mid]
+        for k, off_s in enumerate(offs):
+            booted = boots[k] if k < len(boots) else None
+            waits = {
+                n: w for n in readers(twin, mid) if (w := _wait(twin.records[n].times_ns, off_s))
+            }
+            back = math.inf if booted is None else booted * NS
+            went_on = {n: w - lag for n, (w, left) in waits.items() if left < back}
+            if k >= len(rec.rejoined):  # not back (or still joining) at the end of the run
+                out.append(Outage(mid, off_s, booted, went_on))
+                continue
+            at = rec.rejoined[k]
+            before = rec.before[k]
+            if twin._nn and mid.module > 0:
+                # an NN non-lead shows eq. 11 on the REQ it rejoins with at once: that state is
+                # R^(T2 + 1) of the reference, the held one R^T2 was never shown
+                t2 = at - 1
+                held = {n: w for n, (w, _) in waits.items() if w < t2}
+            else:  # long: it rejoined past what it had shown, or not with the state it showed
+                shown = at < len(before) and before[at] == rec.states[at]
+                held = {} if shown else {n: w - 1 for n, (w, _) in waits.items() if w - 1 < at}
+                t2 = at
+            held = {**went_on, **held}
+            out.append(Outage(mid, off_s, booted, held, t2 if held else None, at))
+    return sorted(out, key=lambda o: o.off_s)
+
+
+def readers(twin: RobotTwin, mid: ModuleId) -> list[ModuleId]:
+    """The modules wired to ``mid`` that read its state (NN: only downstream ones)."""
+    peers = {p for (m, _), ends in twin.wires.items() if m == mid for p, _ in ends}
+    if twin._nn:
+        peers = {p for p in peers if p.leg == mid.leg and p.module > mid.module}
+    return sorted(peers)
+
+
+def _wait(times_ns: list[int], off_s: float) -> tuple[int, float] | None:
+    """(W_N, when N left it, ns) of a neighbour with these transition times: of the transition
+    it showed at the power-off and the next, the one that lasted longer after it."""
+    off = off_s * NS
+    shown = [i for i, t in enumerate(times_ns) if 0 <= t <= off]
+    if not shown:
+        return None
+    s = shown[-1]
+
+    def end(w: int) -> float:
+        return times_ns[w + 1] if w + 1 < len(times_ns) and times_ns[w + 1] >= 0 else math.inf
+
+    def waited(w: int) -> float:
+        return end(w) - max(times_ns[w], off) if w < len(times_ns) else -math.inf
+
+    w = max((s, s + 1), key=waited)
+    return w, end(w)
+
+
+def outage_reference(
+    ctrl: Controller,
+    transitions: int,
+    outs: Sequence[Outage],
+    failed: Sequence[ModuleId] = (),
+    failed_at: Mapping[ModuleId, int] | None = None,
+) -> np.ndarray:
+    """``bstool states`` with the run's failures (``failed``, ``failed_at``: ``--fail``,
+    ``--die``) and each long outage as ``failed_at`` T + ``rejoin`` T2 (the first one of a
+    module; a short one changes nothing)."""
+    dead = dict(failed_at or {})
+    rejoin: dict[ModuleId, int] = {}
+    for o in outs:
+        if o.long and o.failed_at is not None and o.module not in dead:
+            dead[o.module] = o.failed_at
+            if o.rejoin is not None:
+                rejoin[o.module] = o.rejoin
+    return ctrl.states(transitions, failed=list(failed), failed_at=dead, rejoin=rejoin)
+
+
+def compared_states(
+    states: Mapping[ModuleId, list[int]], reference: np.ndarray, outs: Sequence[Outage]
+) -> dict[ModuleId, list[int]]:
+    """Every module's record as it is compared with ``reference`` (:func:`compared_record`)."""
+    long = {o.module: o for o in outs if o.long}
+    return {
+        m: compared_record(seq, long[m], reference[:, m.leg, m.module].tolist())
+        if m in long
+        else seq
+        for m, seq in states.items()
+    }
+
+
+def compared_record(seq: list[int], outage: Outage, reference: list[int]) -> list[int]:
+    """The reset module's own record as it is compared: from T + 1 to the transition before its
+    record restarts it showed states no neighbour received, then nothing (limp); there the
+    reference (its held state) stands in for it."""
+    if not outage.long or outage.failed_at is None:
+        return seq
+    stop = len(reference) if outage.rejoined_at is None else outage.rejoined_at
+    out = list(seq) + [OFF_STATE] * max(0, stop - len(seq))
+    for t in range(outage.failed_at + 1, min(stop, len(out), len(reference))):
+        out[t] = reference[t]
+    return out
+
+
+__all__ = [
+    "OFF_STATE",
+    "Outage",
+    "compared_record",
+    "compared_states",
+    "cut_reference",
+    "outage_reference",
+    "outages",
+    "readers",
+]
+
+
+def cut_reference(
+    ctrl: Controller, transitions: int, cuts: Sequence[tuple[ModuleId, ModuleId]]
+) -> np.ndarray:
+    """CA: R^0..R^T when each end of a cut wire reads the other end's R^0 for ever (it never
+    heard it: dead from power-up for that end only), every other neighbour as healthy."""
+    from bstool.controllers.reference import ca_neighbours, rule_index
+
+    both = [ctrl.rule] if ctrl.rule is not None else [ctrl.control_rule, ctrl.leg_rule]
+    rules = [r for r in both if r is not None]
+    n, m = ctrl.legs, ctrl.modules
+    r0 = ctrl.initial_states.tolist()
+    blind = {(a.leg, a.module, b.leg, b.module) for a, b in cuts}
+    blind |= {(c, d, a, b) for a, b, c, d in blind}
+    frames = [r0]
+    for _ in range(transitions):
+        cur, nxt = frames[-1], [[0] * m for _ in range(n)]
+        for i in range(n):
+            for j in range(m):
+                (li, lj), (ri, rj) = ca_neighbours(ctrl.model, n, m, i, j)
+                left = r0[li][lj] if (i, j, li, lj) in blind else cur[li][lj]
+                right = r0[ri][rj] if (i, j, ri, rj) in blind else cur[ri][rj]
+                rule = rules[0] if (ctrl.model != "ca2ddiff" or j == 0) else rules[1]
+                nxt[i][j] = int(rule[rule_index(left, cur[i][j], right)])
+        frames.append(nxt)
+    return np.array(frames, dtype=np.int64)

@@ -1,0 +1,87 @@
+"""The serve-loop link (protocol/link.md; measurements in docs/link-redesign.md §2.4–2.5) under a
+``--reset`` longer than the dead-limit and a ``--cut`` wire, on the twin without physics (T =
+8). A long outage is compared with ``states(failed_at={c: T}, rejoin={c: T2})``, T and T2 read
+from the record (hil_mock/outage.py); a cut wire with each end reading the other's R^0
+(``cut_reference``). The cases it does not pass yet are strict xfails (docs/link-redesign.md
+§2.4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bstool.buildfile import Build
+from bstool.builtin import builtin_controller
+from bstool.compile import compile_controller
+from bstool.controllers import load_controller
+from bstool.moduleid import ModuleId
+from hil_mock.outage import compared_states, cut_reference, outage_reference, outages
+from hil_mock.perturb import Perturbation, Reset
+from hil_mock.robot import RobotTwin, load_build
+
+T = 8
+
+
+@pytest.fixture(scope="module")
+def builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Build]:
+    root = tmp_path_factory.mktemp("outage")
+    out: dict[str, Build] = {}
+    for model in ("ca1d", "ca2dsing", "nnsin", "nnsig"):
+        compile_controller(builtin_controller(model), root / model)
+        out[model] = load_build(root / model)
+    return out
+
+
+def _outage_exact(build: Build, reset: Reset) -> None:
+    twin = RobotTwin(build, physics=False, perturb=Perturbation(resets=(reset,)))
+    result = twin.run(T)
+    outs = outages(twin)
+    assert outs and outs[0].long  # its neighbours went on without it
+    want = outage_reference(load_controller(build.controller_file), T, outs)
+    got = compared_states(result.states, want, outs)
+    bad = [m for m, seq in got.items() if seq[: T + 1] != want[:, m.leg, m.module].tolist()]
+    assert not bad, f"{outs[0].reference_text()}: {bad}"
+
+
+SPLIT = pytest.mark.xfail(strict=True, reason="neighbours hold different T: per-link (§2.4)")
+NN = pytest.mark.xfail(strict=True, reason="NN draft: downstream keeps the held state (§2.4)")
+
+
+@pytest.mark.parametrize(
+    ("model", "reset"),
+    [
+        ("ca1d", Reset("0.0", 1.5, 3.0)),
+        ("ca1d", Reset("2.3", 1.5, 3.0)),
+        ("ca2dsing", Reset("0.0", 1.62, 3.0)),
+        ("ca2dsing", Reset("2.3", 1.62, 5.0)),
+        ("ca1d", Reset("2.3", 1.62, 3.0)),  # rejoined with 2.4 four transitions ahead
+        ("ca1d", Reset("2.3", 1.5, 5.0)),  # at T = 10 it stalls (docs/link-redesign.md §2.4)
+        pytest.param("ca2dsing", Reset("0.0", 1.5, 3.0), marks=SPLIT),
+        ("nnsin", Reset("2.3", 2.37, 5.0)),
+        pytest.param("nnsig", Reset("2.3", 1.5, 5.0), marks=NN),
+    ],
+    ids=str,
+)
+def test_a_long_outage_is_dead_then_rejoins(
+    builds: dict[str, Build], model: str, reset: Reset
+) -> None:
+    _outage_exact(builds[model], reset)
+
+
+@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
+def test_a_cut_wire_is_a_failure_for_its_two_ends(builds: dict[str, Build], model: str) -> None:
+    build = builds[model]
+    cut = (ModuleId(2, 2), ModuleId(2, 3))
+    result = RobotTwin(build, physics=False, cut=[cut]).run(T)
+    assert not result.stalled
+    want = cut_reference(load_controller(build.controller_file), T, [cut])
+    assert np.array_equal(result.state_array(build.legs, build.modules, T), want)
+
+
+@pytest.mark.xfail(strict=True, reason="NN draft: the module after a cut chain wire never joins")
+@pytest.mark.parametrize("model", ["nnsin", "nnsig"])
+def test_the_nn_draft_goes_on_past_a_cut_wire(builds: dict[str, Build], model: str) -> None:
+    build = builds[model]
+    result = RobotTwin(build, physics=False, cut=[(ModuleId(2, 2), ModuleId(2, 3))]).run(T)
+    assert not result.stalled
