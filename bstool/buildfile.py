@@ -76,6 +76,11 @@ class LinkSettings:
     keepalive_rounds: int
     dead_limit_ms: int
     power_up_window_ms: int
+    states_wait_units: int | None = None  # NN: StatesWait (the packed states after READY)
+    pace_ticks: int | None = None  # NN: PaceTicks (silent upstream ticks before pacing)
+
+
+_LINK_OPTIONAL = ("states_wait_units", "pace_ticks")  # NN only: None (null) in a CA build
 
 
 @dataclass(frozen=True)
@@ -463,7 +468,11 @@ def from_json(obj: Any, file: str | os.PathLike[str] = MANIFEST_FILE) -> Manifes
     link = top.sub("link")
     link_settings = LinkSettings(
         protocol=link.string("protocol"),
-        **{k: link.integer(k) for k in LinkSettings.__dataclass_fields__ if k != "protocol"},
+        **{
+            k: link.integer(k, optional=k in _LINK_OPTIONAL)
+            for k in LinkSettings.__dataclass_fields__
+            if k != "protocol"
+        },
     )
     wires = [
         Wire(

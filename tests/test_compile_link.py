@@ -29,14 +29,25 @@ def test_frame_vectors() -> None:
                           tuple(case["states"]))  # fmt: skip
         raw = link.encode(want, nn=nn)
         assert raw.hex(" ").upper() == case["bytes"]
-        assert link.parse(raw, nn=nn, states=len(case["states"]) or 1) == want
+        assert link.parse(raw, nn=nn) == want
+    for case in data["packed"]:
+        raw = link.pack_states(case["states"], case["h"])
+        assert raw.hex(" ").upper() == case["bytes"]
+        assert link.unpack_states(raw, case["h"], len(case["states"])) == tuple(case["states"])
     for case in data["rejected"]:
         raw = bytes.fromhex(case["bytes"])
-        assert link.parse(raw, nn=case["family"] == "nn", states=case["states"]) is None, case
+        if "h" in case:  # a packed states frame
+            assert link.unpack_states(raw, case["h"], case["states"]) is None, case
+        else:
+            assert link.parse(raw, nn=case["family"] == "nn") is None, case
     for ex in data["exchanges"]:
+        nn = "NN" in ex["description"]
         for step in ex["steps"]:
-            assert link.parse(bytes.fromhex(step["bytes"]), nn="NN" in ex["description"],
-                              states=3) is not None  # fmt: skip
+            raw = bytes.fromhex(step["bytes"])
+            if step.get("packed"):
+                assert link.unpack_states(raw, step["h"], step["packed"]) is not None
+            else:
+                assert link.parse(raw, nn=nn) is not None, step
 
 
 def test_topology_vectors() -> None:
@@ -47,23 +58,43 @@ def test_topology_vectors() -> None:
 
 
 @given(
-    kind=st.sampled_from(["REQ", "REP", "WELCOME"]),
+    kind=st.sampled_from(["REQ", "REP", "READY", "WELCOME"]),
     nn=st.booleans(),
     t=st.integers(0, 7),
-    states=st.lists(st.integers(0, 15), min_size=1, max_size=15),
+    states=st.lists(st.integers(0, 15), min_size=6, max_size=6),
 )
 def test_frame_round_trip(kind: str, nn: bool, t: int, states: list[int]) -> None:
-    n = link.payload_length(kind, nn=nn, states=len(states))
-    frame = link.Frame(kind, t, tuple(states[:n]) if n else ())
+    if kind == "READY" and not nn:
+        assert link.parse(bytes([link.READY + t]), nn=False) is None  # NN only
+        return
+    n = link.payload_length(kind, nn=nn)
+    frame = link.Frame(kind, t, tuple(states[:n]))
     if kind == "WELCOME" and not nn:
-        frame = link.Frame(kind, t, (*(states * 6)[:5], t))
+        frame = link.Frame(kind, t, (*states[:5], t))
     raw = link.encode(frame, nn=nn)
-    assert link.parse(raw, nn=nn, states=len(frame.states) or 1) == frame
+    assert link.parse(raw, nn=nn) == frame
     # a header never looks like a payload byte, so a receiver that starts mid-frame rejects it
     assert all(link.decode_state(raw[0], u) is None for u in range(8))
     if frame.states and not (kind == "WELCOME" and not nn):  # t is in every payload's check
         other = bytes([raw[0] ^ 1, *raw[1:]])
-        assert link.parse(other, nn=nn, states=len(frame.states)) is None
+        assert link.parse(other, nn=nn) is None
+
+
+@given(
+    h=st.integers(0, 7),
+    states=st.lists(st.integers(0, 15), min_size=1, max_size=5),
+    flip=st.integers(0, 39),
+)
+def test_packed_states(h: int, states: list[int], flip: int) -> None:
+    """NN states after READY(h): round trip, every single-bit error and another h rejected."""
+    raw = link.pack_states(states, h)
+    assert len(raw) == link.packed_length(len(states)) == len(states) // 2 + 1
+    assert link.unpack_states(raw, h, len(states)) == tuple(states)
+    bit = flip % (8 * len(raw))
+    bad = bytearray(raw)
+    bad[bit // 8] ^= 1 << (bit % 8)
+    assert link.unpack_states(bytes(bad), h, len(states)) is None
+    assert all(link.unpack_states(raw, u, len(states)) is None for u in range(8) if u != h)
 
 
 @given(s=st.integers(0, 15), t=st.integers(0, 7), flip=st.integers(0, 7))
@@ -72,13 +103,21 @@ def test_single_bit_errors_are_caught(s: int, t: int, flip: int) -> None:
 
 
 def test_bare_answers_are_two_bits_apart() -> None:
-    """NN TOOK, REP and WAIT (protocol/link.md §3): no single flipped bit turns one into
-    another (a WAIT read as REP deadlocked a leg)."""
+    """NN TOOK, REP and WAIT, and READY against every header a master hears (protocol/link.md
+    §3): no single flipped bit turns one into another (a WAIT read as REP deadlocked a leg)."""
     for t in range(link.TRANSITION_MOD):
-        heads = [link.TOOK + t, link.REP + t, link.WAIT + t]
-        for a in heads:
-            for b in heads:
-                assert a == b or bin(a ^ b).count("1") >= 2
+        bare = [link.TOOK + t, link.REP + t, link.WAIT + t]
+        pairs = [(a, b) for a in bare for b in bare if a != b]
+        pairs += [(link.READY + t, b) for b in (*bare, link.WELCOME + t, link.JOIN)]
+        for a, b in pairs:
+            assert bin(a ^ b).count("1") >= 2, (hex(a), hex(b))
+
+
+DECLARED = {
+    "Baud", "HoldFrames", "ReplyWait", "Listen", "Pace", "PayloadWait", "StatesWait", "DeadTicks",
+    "PaceTicks", "JoinTicks", "JoinMs",
+}  # fmt: skip
+"""The CONs the manifest accounts for (test_every_program_declares_the_manifest_constants)."""
 
 
 def test_every_program_declares_the_manifest_constants(tmp_path: Path) -> None:
@@ -95,6 +134,7 @@ def test_every_program_declares_the_manifest_constants(tmp_path: Path) -> None:
             text = (tmp_path / model / m.entry).read_text()
             con = dict(re.findall(r"^(\w+)\s+CON\s+(\d+)", text, re.M))
             k = man.link
+            assert int(con["Baud"]) == k.baudmode
             assert int(con["HoldFrames"]) == k.hold_frames, (model, m.label)
             assert int(con["ReplyWait"]) == k.reply_wait_units
             assert int(con["Listen"]) == k.listen_units
@@ -102,10 +142,14 @@ def test_every_program_declares_the_manifest_constants(tmp_path: Path) -> None:
             assert int(con["PayloadWait"]) == k.payload_wait_units
             assert int(con["DeadTicks"]) == m.dead_ticks
             if model in NN_MODELS:
+                assert int(con["StatesWait"]) == k.states_wait_units
+                assert int(con["PaceTicks"]) == k.pace_ticks
                 assert int(con["DeadTicks"]) * link.NN_TICK_MS == k.dead_limit_ms
                 assert int(con["JoinTicks"]) * link.NN_TICK_MS == k.power_up_window_ms
             else:
                 assert int(con["JoinMs"]) == k.power_up_window_ms
+                assert k.states_wait_units is None and k.pace_ticks is None
+            assert set(con) <= DECLARED, set(con) - DECLARED  # a new CON: into the manifest
 
 
 def test_baudmode() -> None:

@@ -84,6 +84,8 @@ def _link_settings(nn: bool) -> bf.LinkSettings:
         keepalive_rounds=k.keepalive_rounds,
         dead_limit_ms=k.dead_limit_ms,
         power_up_window_ms=k.power_up_window_ms,
+        states_wait_units=k.states_wait,
+        pace_ticks=k.pace_ticks,
     )
 
 

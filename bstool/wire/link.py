@@ -18,14 +18,24 @@ TRANSITION_MOD = 8
 """Headers carry t mod 8: neighbours are within ±1 transition (the join within ±2)."""
 
 # ---- headers (protocol/link.md §3) ------------------------------------------------------------
-REQ = 0xA8  # $A8 + t: a master's request (CA: my S^t; NN: S^(h+1) of modules 0..j)
+REQ = 0xA8  # $A8 + t: a master's request (CA: my S^t; NN: the header alone, "take S^(t+1)?")
 REP = 0xC8  # $C8 + t: a slave's reply (CA: my S^t; NN: bare, "I show it")
+READY = 0x50  # NN: $50 + h, "send me S^(h+1)": the packed states follow (pack_states)
 TOOK = 0x98  # NN: $98 + h, "I took S^(h+1)"
 WAIT = 0x68  # NN: $68 + t, "alive, not yet"
 BEHIND = 0xE8  # CA: $E8 + t, "I am one transition behind you"
 WELCOME = 0xD8  # $D8 + t: the answer to a JOIN of a rebooted neighbour
 JOIN = 0xB8  # $B8, $B8: "I have just booted"
-KINDS = {REQ: "REQ", REP: "REP", TOOK: "TOOK", WAIT: "WAIT", BEHIND: "BEHIND", WELCOME: "WELCOME"}
+KINDS = {
+    REQ: "REQ",
+    REP: "REP",
+    READY: "READY",
+    TOOK: "TOOK",
+    WAIT: "WAIT",
+    BEHIND: "BEHIND",
+    WELCOME: "WELCOME",
+}
+NN_ONLY = ("READY", "TOOK", "WAIT")
 
 
 @dataclass(frozen=True)
@@ -44,6 +54,8 @@ class ServeConstants:
     power_up_window_ms: int  # the join waits this long for a silent neighbour at power-up
     keepalive_rounds: int  # a master that has its reply still sends every this many rounds
     jitter_units: int = 7  # RANDOM & 7 added to both timeouts
+    states_wait: int | None = None  # NN: the packed states after READY, 0.4 ms units per byte
+    pace_ticks: int | None = None  # NN: every upstream wire silent this many ticks: pace myself
 
 
 CA = ServeConstants(
@@ -60,11 +72,13 @@ NN = ServeConstants(
     hold_frames=4,  # the lead's floor: the relay's round trips set the NN period, not the hold
     reply_wait=16,  # as CA
     listen=22,  # as CA
-    payload_wait=25,  # 10 ms per byte: a REQ of up to 6 bytes at the 2 ms pace
+    payload_wait=25,  # 10 ms: the one byte after a JOIN or WELCOME header, generous (rare frames)
     pace_ms=2,  # as CA
     dead_limit_ms=1500,  # DeadTicks = 15 ticks of 100 ms
     power_up_window_ms=4500,  # JoinTicks = 45 ticks of 100 ms
     keepalive_rounds=4,  # as CA
+    states_wait=15,  # 6 ms per byte: a byte (2.08 ms) at the 2 ms pace, so a lost byte costs a try
+    pace_ticks=30,  # 2 x DeadTicks: a live upstream is heard well before, a dead lead is not
 )
 NN_TICK_MS = 100
 """NN: one silent tick is 100 ms of a sum of lower bounds of the tries."""
@@ -117,13 +131,18 @@ def decode_state(b: int, t: int = 0) -> int | None:
 
 @dataclass(frozen=True)
 class Frame:
-    """A frame as a module program reads it. ``states``: REQ/REP (CA: one state; NN REQ: one
-    per upstream module and the sender), WELCOME (CA: got + 2·fresh, nb, nbp, state, prev, t;
-    NN: the lead's state)."""
+    """A frame as a module program reads it. ``states``: CA REQ/REP one state; WELCOME (CA:
+    got + 2·fresh, nb, nbp, state, prev, t; NN: the lead's state). NN REQ is the header alone:
+    its states follow READY as a packed frame (:func:`pack_states`)."""
 
-    kind: str  # REQ REP TOOK WAIT BEHIND WELCOME JOIN
+    kind: str  # REQ REP READY TOOK WAIT BEHIND WELCOME JOIN
     t: int = 0
     states: tuple[int, ...] = ()
+
+
+def _bare(kind: str, nn: bool) -> bool:
+    """Header-only frames: TOOK, WAIT, BEHIND, and in NN also REQ, REP and READY."""
+    return kind in ("TOOK", "WAIT", "BEHIND") or (nn and kind in ("REQ", "REP", "READY"))
 
 
 def encode(frame: Frame, *, nn: bool) -> bytes:
@@ -132,25 +151,23 @@ def encode(frame: Frame, *, nn: bool) -> bytes:
     if frame.kind == "JOIN":
         return bytes([JOIN, JOIN])
     base = {v: k for k, v in KINDS.items()}[frame.kind]
-    if frame.kind in ("TOOK", "WAIT", "BEHIND") or (frame.kind == "REP" and nn):
+    if _bare(frame.kind, nn):
         return bytes([base + t])
     if frame.kind == "WELCOME" and not nn:
         return bytes([base + t, *(encode_state(s) for s in frame.states)])
     return bytes([base + t, *(encode_state(s, t) for s in frame.states)])
 
 
-def payload_length(kind: str, *, nn: bool, states: int = 1) -> int:
-    """Payload bytes after the header of ``kind`` (NN REQ: ``states``)."""
+def payload_length(kind: str, *, nn: bool) -> int:
+    """Payload bytes after the header of ``kind``."""
     if kind == "JOIN":
         return 1
-    if kind in ("TOOK", "WAIT", "BEHIND") or (kind == "REP" and nn):
+    if _bare(kind, nn):
         return 0
-    if kind == "WELCOME":
-        return 1 if nn else 6
-    return states if nn and kind == "REQ" else 1
+    return 1 if nn or kind != "WELCOME" else 6
 
 
-def parse(data: bytes, *, nn: bool, states: int = 1) -> Frame | None:
+def parse(data: bytes, *, nn: bool) -> Frame | None:
     """Check a received frame as the module program does: header, length and every check
     nibble (CA WELCOME: its last field repeats t). None means "not received"."""
     if not data:
@@ -158,10 +175,10 @@ def parse(data: bytes, *, nn: bool, states: int = 1) -> Frame | None:
     if data[0] == JOIN:
         return Frame("JOIN") if data == bytes([JOIN, JOIN]) else None
     kind = KINDS.get(data[0] & 0xF8)
-    if kind is None or (kind in ("TOOK", "WAIT") and not nn) or (kind == "BEHIND" and nn):
+    if kind is None or (kind in NN_ONLY and not nn) or (kind == "BEHIND" and nn):
         return None
     t = data[0] & 7
-    if len(data) != 1 + payload_length(kind, nn=nn, states=states):
+    if len(data) != 1 + payload_length(kind, nn=nn):
         return None
     plain = kind == "WELCOME" and not nn
     got = [decode_state(b, 0 if plain else t) for b in data[1:]]
@@ -171,6 +188,46 @@ def parse(data: bytes, *, nn: bool, states: int = 1) -> Frame | None:
     if plain and values[-1] != t:
         return None
     return Frame(kind, t, values)
+
+
+# ---- NN: the packed states after READY(h) ----------------------------------------------------
+
+
+def packed_length(states: int) -> int:
+    """Bytes of ``states`` packed states: two to a byte, and the check nibble."""
+    return states // 2 + 1
+
+
+def pack_states(states: tuple[int, ...] | list[int], h: int) -> bytes:
+    """The master's answer to READY(h): S^(h+1) of modules 0..j, two to a byte (byte k =
+    s(2k) << 4 + s(2k+1)); the last byte's high nibble is c = s(0) ^ .. ^ s(n-1) ^ h, its low
+    nibble the odd state or 0. So the payload's nibbles XOR to h: a single-bit error changes
+    that XOR, and states of another transition fail unless h's bits are flipped as well."""
+    if not states or any(not 0 <= s <= 15 for s in states):
+        raise ValueError(f"states {states} are not one or more of 0..15")
+    n, check = len(states), h % TRANSITION_MOD
+    for s in states:
+        check ^= s
+    out = [states[2 * k] << 4 | states[2 * k + 1] for k in range(n // 2)]
+    out.append(check << 4 | (states[-1] if n % 2 else 0))
+    return bytes(out)
+
+
+def unpack_states(data: bytes, h: int, states: int) -> tuple[int, ...] | None:
+    """The ``states`` states of a packed frame received after READY(h), or None if its length
+    or its check is wrong (the program checks the nibble XOR only: a wrong length is a
+    StatesWait timeout)."""
+    if len(data) != packed_length(states):
+        return None
+    x = 0
+    for b in data:
+        x ^= b
+    if (x >> 4) ^ (x & 15) != h % TRANSITION_MOD:
+        return None
+    nibbles = [v for b in data[:-1] for v in (b >> 4, b & 15)]
+    if states % 2:
+        nibbles.append(data[-1] & 15)
+    return tuple(nibbles)
 
 
 def byte_ms(baud: int = BAUD) -> float:

@@ -17,9 +17,18 @@ HERE = Path(__file__).resolve().parent
 MODELS = ("ca1d", "ca2dsing", "ca2ddiff", "nnsig", "nnsin")
 
 # §3 Frames (the serve loop)
-HEADERS = {"REQ": 0xA8, "REP": 0xC8, "TOOK": 0x98, "WAIT": 0x68, "BEHIND": 0xE8, "WELCOME": 0xD8}
+HEADERS = {
+    "REQ": 0xA8,
+    "REP": 0xC8,
+    "READY": 0x50,
+    "TOOK": 0x98,
+    "WAIT": 0x68,
+    "BEHIND": 0xE8,
+    "WELCOME": 0xD8,
+}
 JOIN = 0xB8  # JOIN is $B8, $B8
-BARE = {"TOOK", "WAIT", "BEHIND"}  # header only (NN: REP too)
+BARE = {"TOOK", "WAIT", "BEHIND"}  # header only (NN: REQ, REP and READY too)
+NN_BARE = {"REQ", "REP", "READY"}
 
 
 def state_byte(s: int, t: int = 0) -> int:
@@ -34,10 +43,26 @@ def frame(kind: str, t: int, states: list[int], *, nn: bool) -> bytes:
     if kind == "JOIN":
         return bytes([JOIN, JOIN])
     header = HEADERS[kind] + t % 8
-    if kind in BARE or (nn and kind == "REP"):
+    if kind in BARE or (nn and kind in NN_BARE):
         return bytes([header])
     code = 0 if kind == "WELCOME" and not nn else t
     return bytes([header, *(state_byte(s, code) for s in states)])
+
+
+def packed(states: list[int], h: int) -> bytes:
+    """§3 (NN): the states after READY(h), two to a byte, high nibble first; the last byte's
+    high nibble is the XOR of the states and h, its low nibble the odd state or 0."""
+    check = h % 8
+    for s in states:
+        check ^= s
+    pairs = [states[k] << 4 | states[k + 1] for k in range(0, len(states) - 1, 2)]
+    return bytes([*pairs, check << 4 | (states[-1] if len(states) % 2 else 0)])
+
+
+def _flip(data: bytes, bit: int) -> str:
+    out = bytearray(data)
+    out[bit // 8] ^= 1 << (bit % 8)
+    return _hex(bytes(out))
 
 
 def _hex(data: bytes) -> str:
@@ -134,8 +159,10 @@ def frames() -> dict[str, object]:
         ("ca", "BEHIND", 2, []),
         ("ca", "JOIN", 0, []),
         ("ca", "WELCOME", 4, [3, 9, 8, 2, 1, 4]),
-        ("nn", "REQ", 3, [1, 4, 9, 15, 0]),
-        ("nn", "REQ", 6, [4, 11, 7]),
+        ("nn", "REQ", 3, []),
+        ("nn", "REQ", 6, []),
+        ("nn", "READY", 6, []),
+        ("nn", "READY", 0, []),
         ("nn", "TOOK", 6, []),
         ("nn", "REP", 6, []),
         ("nn", "WAIT", 1, []),
@@ -147,16 +174,27 @@ def frames() -> dict[str, object]:
         ("the check nibble not XORed with t (t = 1)", "ca", 1, "A9 87"),
         ("check nibble wrong", "ca", 0, "A8 77"),
         ("frame too short (payload missing)", "ca", 0, "A8"),
-        ("an NN REQ whose second state fails its check", "nn", 3, "AB B7 88"),
+        ("an NN REQ with a payload (the states follow READY)", "nn", 3, "AB B7 88"),
+        ("READY is not a CA frame", "ca", 6, "56"),
         ("a CA WELCOME whose last field is not its header's t", "ca", 4, "DC C3 69 78 D2 E1 A5"),
         ("a JOIN with one byte lost", "ca", 0, "B8"),
         ("TOOK is not a CA frame", "ca", 2, "9A"),
     ]
-    relay = frame("REQ", 6, [4, 11, 7], nn=True)
+    packs = [([1, 4, 9, 15, 0], 3), ([4, 11, 7], 6), ([4, 11], 6), ([9], 0), ([0, 0, 0, 0], 7)]
+    states_bad = [  # every single-bit error of one packed frame, and a frame of another h
+        {"why": f"packed [1, 4, 9, 15, 0] after READY(3), bit {b} flipped", "family": "nn",
+         "h": 3, "states": 5, "bytes": _flip(packed([1, 4, 9, 15, 0], 3), b)}
+        for b in range(24)
+    ] + [
+        {"why": "packed [4, 11, 7] of READY(6) taken after READY(5)", "family": "nn", "h": 5,
+         "states": 3, "bytes": _hex(packed([4, 11, 7], 6))},
+        {"why": "packed [4, 11, 7] with its last byte lost", "family": "nn", "h": 6,
+         "states": 3, "bytes": _hex(packed([4, 11, 7], 6)[:1])},
+    ]  # fmt: skip
     bad_welcome = frame("WELCOME", 4, [3, 9, 8, 2, 1, 5], nn=False)
-    assert bad_welcome.hex(" ").upper() == rejected[5][3]
+    assert bad_welcome.hex(" ").upper() == rejected[6][3]
     return {
-        "format": "bstool.linkvectors/2",
+        "format": "bstool.linkvectors/3",
         "spec": "protocol/link.md",
         "headers": {**HEADERS, "JOIN": JOIN},
         "frames": [
@@ -169,9 +207,12 @@ def frames() -> dict[str, object]:
             }
             for family, kind, t, states in cases
         ],
+        "packed": [
+            {"h": h, "states": states, "bytes": _hex(packed(states, h))} for states, h in packs
+        ],
         "rejected": [
-            {"why": why, "family": family, "states": 2 if "second" in why else 1, "bytes": raw}
-            for why, family, _t, raw in rejected
+            *({"why": why, "family": family, "bytes": raw} for why, family, _t, raw in rejected),
+            *states_bad,
         ],
         "exchanges": [
             {
@@ -202,13 +243,22 @@ def frames() -> dict[str, object]:
             },
             {
                 "description": "NN relay at t=6 on the wire L2.M2 (master, P1) - L2.M3 (slave, "
-                "P0): the master sends the t+1 states of modules 0..2 = [4, 11, 7]; the slave "
-                "takes them (TOOK), the master shows S^7, and once the slave shows it too its "
-                "answer to the next REQ(6) is REP(6) (§4.6).",
+                "P0): the master polls with REQ(6), the slave answers READY(6), the master "
+                "sends the t+1 states of modules 0..2 = [4, 11, 7] packed; the slave takes "
+                "them (TOOK(6), before its lookup), the master shows S^7, and once the slave "
+                "shows it too its answer to the next REQ(6) is REP(6) (§4.6).",
                 "steps": [
-                    {"from": "2.2", "to": "2.3", "bytes": _hex(relay)},
+                    {"from": "2.2", "to": "2.3", "bytes": _hex(frame("REQ", 6, [], nn=True))},
+                    {"from": "2.3", "to": "2.2", "bytes": _hex(frame("READY", 6, [], nn=True))},
+                    {
+                        "from": "2.2",
+                        "to": "2.3",
+                        "bytes": _hex(packed([4, 11, 7], 6)),
+                        "packed": 3,
+                        "h": 6,
+                    },
                     {"from": "2.3", "to": "2.2", "bytes": _hex(frame("TOOK", 6, [], nn=True))},
-                    {"from": "2.2", "to": "2.3", "bytes": _hex(relay)},
+                    {"from": "2.2", "to": "2.3", "bytes": _hex(frame("REQ", 6, [], nn=True))},
                     {"from": "2.3", "to": "2.2", "bytes": _hex(frame("REP", 6, [], nn=True))},
                 ],
             },
