@@ -145,7 +145,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
             "modules after two neighbouring dead NN modules ("
             + ", ".join(m.label for m in limited)
             + ") are compared with the compiled programs' emulation: they cannot hear the modules"
-            " before the pair and stop where they are (the documented"
+            " before the pair and pace on the states they hold (the documented"
             ' limit, docs/compile.md "Checking exactness")'
         )
     return TwinReport(
@@ -229,8 +229,9 @@ def _run(twin: RobotTwin, options: TwinOptions) -> TwinResult:
 
 
 def _hold_frozen(result: TwinResult, frozen: list[ModuleId], transitions: int) -> None:
-    """Modules past two dead NN neighbours get no frame and stop where they are (the documented
-    limit, protocol/link.md §4.6): they show their last state for ever, they have not stalled."""
+    """Modules past two dead NN neighbours get no frame and pace on the states they hold (the
+    documented limit, protocol/link.md §4.6): a constant state; a record that ends early (a
+    run shorter than PaceTicks after the second death) is one that has not stalled."""
     for mid in frozen:
         seq = result.states.get(mid, [])
         if seq:

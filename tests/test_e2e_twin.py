@@ -69,9 +69,7 @@ def test_states_equal_the_reference(flashed) -> None:  # type: ignore[no-untyped
 
 @pytest.mark.parametrize("dead", [ModuleId(0, 0), ModuleId(2, 3)])
 def test_a_dead_module_equals_the_failed_reference(flashed, dead: ModuleId) -> None:  # type: ignore[no-untyped-def]
-    model, ctrl, build, fleet = flashed
-    if model.startswith("nn") and dead.module == 0:
-        pytest.xfail("NN relay: a dead lead leaves its leg without a pace-maker (link-redesign §6)")
+    _, ctrl, build, fleet = flashed
     twin = RobotTwin(build, eeproms=dict(fleet.eeproms), failed=[dead], physics=False)
     result = twin.run(LONG)
     np.testing.assert_array_equal(

@@ -8,7 +8,10 @@ dead-limit its neighbours stop waiting and keep the last state they hold of it (
 compiled-in value, for one dead from power-up). ``die`` modules run up to S^T and are dead
 from then on (their neighbours hold S^T; an NN module relays S^T before it shows it). An NN
 module whose upstream wires are all dead (after two dead neighbours, or module 1 after a dead
-lead) gets no frame and stops where it is, and so does the rest of its leg. ``rejoin`` modules
+lead) gets no frame: after PaceTicks it paces, i.e. takes the next state from the upstream
+states it holds, as a frame would have brought them (so after a dying pair it shows a constant
+state, and module 1 of a dead lead follows the lead's held state), and the rest of its leg
+follows it as usual. ``rejoin`` modules
 (dead or dying) follow their rule again from the transition T2 on, from the state their
 neighbours held for them (``controller.states(..., rejoin=)``, protocol/link.md §4.4).
 The tests compare this with the reference ``controller.states(T, failed, failed_at)``.
@@ -82,8 +85,7 @@ def run(
                     elif j >= 2 and not gone(ModuleId(leg, j - 2), t):  # the bypass wire
                         before = ModuleId(leg, j - 2)
                         known[p.mid][: j - 1] = [*known[before], state[before]]
-                    else:  # no frame reaches it: it stops where it is (so does its leg after it)
-                        continue
+                    # else no frame reaches it: it paces on the states it holds (PaceTicks)
                     total = sum(known[p.mid][a] for a in p.nn_terms)
                     state[p.mid] = p.nn_table[total]
         frames.append(_grid(state, n, m))
