@@ -12,9 +12,11 @@ without it) when a neighbour left W_N before c booted again, or when c came back
 state it had shown, or with another state than it had shown there (CA: it took the state its
 neighbours held for it), or, for an NN non-lead (which shows eq. 11 on the REQ it rejoins with
 at once, R^(T2 + 1)), at a T2 past the state its downstream held. The reference is then
-``states(failed_at={c: T}, rejoin={c: T2})`` (docs/controllers.md "Rejoin"), T the held T_N
-(the earliest if they differ); otherwise the healthy one. docs/twin.md, "Which reference a
-reset is compared with".
+``states(failed_at={c: T}, rejoin={c: T2})`` (docs/controllers.md "Rejoin"); otherwise the
+healthy one. If the T_N differ (a power cut between c's exchanges of one transition): CA, per
+link, T the latest and ``held={c: {N: T_N}}`` for each reader N that went on with an earlier
+one (a neighbour that waited reads the state c rejoins with); NN, T the earliest. docs/twin.md,
+"Which reference a reset is compared with".
 """
 
 from __future__ import annotations
@@ -46,6 +48,9 @@ class Outage:
     # CA: the neighbours that read c's state (its rule's readers; a wire peer may not be one):
     # each is compared reading the state it held (per link); NN: empty, compared with the earliest
     reads: frozenset[ModuleId] = frozenset()
+    # N -> T_N for the N that left their wait before c booted (a waiting one reads the state c
+    # rejoins with: its REQ is answered with it)
+    went_on: dict[ModuleId, int] = field(default_factory=dict)
 
     @property
     def long(self) -> bool:
@@ -70,12 +75,12 @@ class Outage:
 
     @property
     def links(self) -> dict[ModuleId, int]:
-        """CA: reader N -> T_N for the readers that held an earlier state than ``failed_at``
-        (``states(held={c: links})``)."""
+        """CA: reader N -> T_N for the readers that went on with an earlier state than
+        ``failed_at`` (``states(held={c: links})``)."""
         t = self.failed_at
         if t is None:
             return {}
-        return {n: tn for n, tn in sorted(self.held.items()) if n in self.reads and tn < t}
+        return {n: tn for n, tn in sorted(self.went_on.items()) if n in self.reads and tn < t}
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -98,10 +103,12 @@ class Outage:
             ref += f" --held-by {n.label}={self.module.label}@{tn}"
         if self.rejoin is not None:
             ref += f" --rejoin {self.module.label}@{self.rejoin}"
-        if not self.consistent:
+        if self.links:
+            ref += f" (per link: the others read S^{self.failed_at})"
+        elif not self.consistent:
             held = ", ".join(f"{m.label} S^{t}" for m, t in sorted(self.held.items()))
-            how = "per link" if self.per_link else "compared with the earliest"
-            ref += f" (neighbours disagree, {how}: {held})"
+            how = "the latest" if self.per_link else "the earliest"
+            ref += f" (neighbours disagree, compared with {how}: {held})"
         return ref
 
 
@@ -121,7 +128,7 @@ def outages(twin: RobotTwin) -> list[Outage]:
             went_on = {n: w - lag for n, (w, left) in waits.items() if left < back}
             reads = frozenset() if twin._nn else ca_readers(twin, mid)
             if k >= len(rec.rejoined):  # not back (or still joining) at the end of the run
-                out.append(Outage(mid, off_s, booted, went_on, reads=reads))
+                out.append(Outage(mid, off_s, booted, went_on, reads=reads, went_on=went_on))
                 continue
             at = rec.rejoined[k]
             before = rec.before[k]
@@ -135,7 +142,7 @@ def outages(twin: RobotTwin) -> list[Outage]:
                 held = {} if shown else {n: w - 1 for n, (w, _) in waits.items() if w - 1 < at}
                 t2 = at
             held = {**went_on, **held}
-            out.append(Outage(mid, off_s, booted, held, t2 if held else None, at, reads))
+            out.append(Outage(mid, off_s, booted, held, t2 if held else None, at, reads, went_on))
     return sorted(out, key=lambda o: o.off_s)
 
 

@@ -1,7 +1,8 @@
 """The serve-loop link (protocol/link.md; measurements in docs/link-redesign.md §2.4–2.5) under a
 ``--reset`` longer than the dead-limit and a ``--cut`` wire, on the twin without physics (T =
 8). A long outage is compared with ``states(failed_at={c: T}, rejoin={c: T2})``, T and T2 read
-from the record (hil_mock/outage.py); a cut wire with each end reading the other's R^0
+from the record (hil_mock/outage.py), CA per link (``held``) when the neighbours that went on
+held states of different transitions; a cut wire with each end reading the other's R^0
 (``cut_reference``). The cases it does not pass yet are strict xfails (docs/link-redesign.md
 §2.4).
 """
@@ -44,7 +45,6 @@ def _outage_exact(build: Build, reset: Reset) -> None:
     assert not bad, f"{outs[0].reference_text()}: {bad}"
 
 
-SPLIT = pytest.mark.xfail(strict=True, reason="neighbours hold different T: per-link (§2.4)")
 NN = pytest.mark.xfail(strict=True, reason="NN draft: downstream keeps the held state (§2.4)")
 
 
@@ -56,8 +56,9 @@ NN = pytest.mark.xfail(strict=True, reason="NN draft: downstream keeps the held 
         ("ca2dsing", Reset("0.0", 1.62, 3.0)),
         ("ca2dsing", Reset("2.3", 1.62, 5.0)),
         ("ca1d", Reset("2.3", 1.62, 3.0)),  # rejoined with 2.4 four transitions ahead
-        ("ca1d", Reset("2.3", 1.5, 5.0)),  # at T = 10 it stalls (docs/link-redesign.md §2.4)
-        pytest.param("ca2dsing", Reset("0.0", 1.5, 3.0), marks=SPLIT),
+        ("ca1d", Reset("2.3", 1.5, 5.0)),  # 2.4 three ahead of 2.2 at the rejoin (§2.4)
+        ("ca2dsing", Reset("0.0", 1.5, 3.0)),  # per link: 4.0 holds S^1, the others S^2
+        ("ca1d", Reset("0.0", 1.67, 3.0)),  # a random instant; 0.5 waited, 0.1 went on
         ("nnsin", Reset("2.3", 2.37, 5.0)),
         pytest.param("nnsig", Reset("2.3", 1.5, 5.0), marks=NN),
     ],
