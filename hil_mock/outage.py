@@ -12,9 +12,11 @@ without it) when a neighbour left W_N before c booted again, or when c came back
 state it had shown, or with another state than it had shown there (CA: it took the state its
 neighbours held for it), or, for an NN non-lead (which shows eq. 11 on the REQ it rejoins with
 at once, R^(T2 + 1)), at a T2 past the state its downstream held. The reference is then
-``states(failed_at={c: T}, rejoin={c: T2})`` (docs/controllers.md "Rejoin"), T the held T_N
-(the earliest if they differ); otherwise the healthy one. docs/twin.md, "Which reference a
-reset is compared with".
+``states(failed_at={c: T}, rejoin={c: T2})`` (docs/controllers.md "Rejoin"); otherwise the
+healthy one. If the T_N differ (a power cut between c's exchanges of one transition): CA, per
+link, T the latest and ``held={c: {N: T_N}}`` for each reader N that went on with an earlier
+one (a neighbour that waited reads the state c rejoins with); NN, T the earliest. docs/twin.md,
+"Which reference a reset is compared with".
 """
 
 from __future__ import annotations
@@ -43,6 +45,12 @@ class Outage:
     held: dict[ModuleId, int] = field(default_factory=dict)  # N -> T_N, for N that went on
     rejoin: int | None = None  # T2 (None: not back within the run)
     rejoined_at: int | None = None  # where its record restarts (T2, NN non-lead T2 + 1)
+    # CA: the neighbours that read c's state (its rule's readers; a wire peer may not be one):
+    # each is compared reading the state it held (per link); NN: empty, compared with the earliest
+    reads: frozenset[ModuleId] = frozenset()
+    # N -> T_N for the N that left their wait before c booted (a waiting one reads the state c
+    # rejoins with: its REQ is answered with it)
+    went_on: dict[ModuleId, int] = field(default_factory=dict)
 
     @property
     def long(self) -> bool:
@@ -54,9 +62,25 @@ class Outage:
         return len(set(self.held.values())) <= 1
 
     @property
+    def per_link(self) -> bool:
+        return bool(self.reads)
+
+    @property
     def failed_at(self) -> int | None:
-        """T: the transition whose state the neighbours held (the earliest, if they differ)."""
-        return min(self.held.values()) if self.held else None
+        """T: the transition whose state the neighbours held; if they differ, CA: the latest (c
+        showed it, each other reader is given its own by :attr:`links`), NN: the earliest."""
+        if not self.held:
+            return None
+        return max(self.held.values()) if self.per_link else min(self.held.values())
+
+    @property
+    def links(self) -> dict[ModuleId, int]:
+        """CA: reader N -> T_N for the readers that went on with an earlier state than
+        ``failed_at`` (``states(held={c: links})``)."""
+        t = self.failed_at
+        if t is None:
+            return {}
+        return {n: tn for n, tn in sorted(self.went_on.items()) if n in self.reads and tn < t}
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -66,6 +90,7 @@ class Outage:
             "long": self.long,
             "held": {str(m): t for m, t in self.held.items()},
             "failed_at": self.failed_at,
+            "held_by": {str(m): t for m, t in self.links.items()},
             "rejoin": self.rejoin,
             "reference": self.reference_text(),
         }
@@ -74,11 +99,16 @@ class Outage:
         if not self.long:
             return "healthy (waited for)"
         ref = f"--fail-at {self.module.label}@{self.failed_at}"
+        for n, tn in self.links.items():
+            ref += f" --held-by {n.label}={self.module.label}@{tn}"
         if self.rejoin is not None:
             ref += f" --rejoin {self.module.label}@{self.rejoin}"
-        if not self.consistent:
+        if self.links:
+            ref += f" (per link: the others read S^{self.failed_at})"
+        elif not self.consistent:
             held = ", ".join(f"{m.label} S^{t}" for m, t in sorted(self.held.items()))
-            ref += f" (neighbours disagree: {held})"
+            how = "the latest" if self.per_link else "the earliest"
+            ref += f" (neighbours disagree, compared with {how}: {held})"
         return ref
 
 
@@ -96,8 +126,9 @@ def outages(twin: RobotTwin) -> list[Outage]:
             }
             back = math.inf if booted is None else booted * NS
             went_on = {n: w - lag for n, (w, left) in waits.items() if left < back}
+            reads = frozenset() if twin._nn else ca_readers(twin, mid)
             if k >= len(rec.rejoined):  # not back (or still joining) at the end of the run
-                out.append(Outage(mid, off_s, booted, went_on))
+                out.append(Outage(mid, off_s, booted, went_on, reads=reads, went_on=went_on))
                 continue
             at = rec.rejoined[k]
             before = rec.before[k]
@@ -111,7 +142,7 @@ def outages(twin: RobotTwin) -> list[Outage]:
                 held = {} if shown else {n: w - 1 for n, (w, _) in waits.items() if w - 1 < at}
                 t2 = at
             held = {**went_on, **held}
-            out.append(Outage(mid, off_s, booted, held, t2 if held else None, at))
+            out.append(Outage(mid, off_s, booted, held, t2 if held else None, at, reads, went_on))
     return sorted(out, key=lambda o: o.off_s)
 
 
@@ -121,6 +152,20 @@ def readers(twin: RobotTwin, mid: ModuleId) -> list[ModuleId]:
     if twin._nn:
         peers = {p for p in peers if p.leg == mid.leg and p.module > mid.module}
     return sorted(peers)
+
+
+def ca_readers(twin: RobotTwin, mid: ModuleId) -> frozenset[ModuleId]:
+    """The CA modules whose rule reads ``mid``'s state (eq. 4–5, 7–8)."""
+    from bstool.controllers.reference import ca_neighbours
+
+    b = twin.build
+    model = b.manifest.controller.model
+    return frozenset(
+        ModuleId(i, j)
+        for i in range(b.legs)
+        for j in range(b.modules)
+        if (mid.leg, mid.module) in ca_neighbours(model, b.legs, b.modules, i, j)
+    )
 
 
 def _wait(times_ns: list[int], off_s: float) -> tuple[int, float] | None:
@@ -150,16 +195,20 @@ def outage_reference(
     failed_at: Mapping[ModuleId, int] | None = None,
 ) -> np.ndarray:
     """``bstool states`` with the run's failures (``failed``, ``failed_at``: ``--fail``,
-    ``--die``) and each long outage as ``failed_at`` T + ``rejoin`` T2 (the first one of a
-    module; a short one changes nothing)."""
+    ``--die``) and each long outage as ``failed_at`` T + ``rejoin`` T2, CA with ``held`` for the
+    readers that held an earlier state (the first outage of a module; a short one changes
+    nothing)."""
     dead = dict(failed_at or {})
     rejoin: dict[ModuleId, int] = {}
+    held: dict[ModuleId, dict[ModuleId, int]] = {}
     for o in outs:
         if o.long and o.failed_at is not None and o.module not in dead:
             dead[o.module] = o.failed_at
+            if o.links:
+                held[o.module] = o.links
             if o.rejoin is not None:
                 rejoin[o.module] = o.rejoin
-    return ctrl.states(transitions, failed=list(failed), failed_at=dead, rejoin=rejoin)
+    return ctrl.states(transitions, failed=list(failed), failed_at=dead, rejoin=rejoin, held=held)
 
 
 def compared_states(
@@ -191,6 +240,7 @@ def compared_record(seq: list[int], outage: Outage, reference: list[int]) -> lis
 __all__ = [
     "OFF_STATE",
     "Outage",
+    "ca_readers",
     "compared_record",
     "compared_states",
     "cut_reference",

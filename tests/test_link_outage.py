@@ -1,7 +1,8 @@
 """The serve-loop link (protocol/link.md; measurements in docs/link-redesign.md §2.4–2.5) under a
 ``--reset`` longer than the dead-limit and a ``--cut`` wire, on the twin without physics (T =
 8). A long outage is compared with ``states(failed_at={c: T}, rejoin={c: T2})``, T and T2 read
-from the record (hil_mock/outage.py); a CA cut wire with each end reading the other's R^0
+from the record (hil_mock/outage.py), CA per link (``held``) when the neighbours that went on
+held states of different transitions; a CA cut wire with each end reading the other's R^0
 (``cut_reference``), an NN cut chain wire as a failure of its downstream end (protocol/link.md,
 the NN relay). The cases it does not pass yet are strict xfails (docs/link-redesign.md §2.4).
 """
@@ -46,7 +47,6 @@ def _outage_exact(build: Build, reset: Reset, T: int = T) -> None:
     assert not bad, f"{outs[0].reference_text()}: {bad}"
 
 
-SPLIT = pytest.mark.xfail(strict=True, reason="neighbours hold different T: per-link (§2.4)")
 NN_LONG = pytest.mark.xfail(
     strict=True,
     reason="NN long outage: after the rejoin the modules downstream of 2.3 (nnsig 2.4, 2.5; "
@@ -64,8 +64,9 @@ T_NN = 16
         ("ca2dsing", Reset("0.0", 1.62, 3.0)),
         ("ca2dsing", Reset("2.3", 1.62, 5.0)),
         ("ca1d", Reset("2.3", 1.62, 3.0)),  # rejoined with 2.4 four transitions ahead
-        ("ca1d", Reset("2.3", 1.5, 5.0)),  # at T = 10 it stalls (docs/link-redesign.md §2.4)
-        pytest.param("ca2dsing", Reset("0.0", 1.5, 3.0), marks=SPLIT),
+        ("ca1d", Reset("2.3", 1.5, 5.0)),  # 2.4 three ahead of 2.2 at the rejoin (§2.4)
+        ("ca2dsing", Reset("0.0", 1.5, 3.0)),  # per link: 4.0 holds S^1, the others S^2
+        ("ca1d", Reset("0.0", 1.67, 3.0)),  # a random instant; 0.5 waited, 0.1 went on
         pytest.param("nnsin", Reset("2.3", 2.37, 5.0), marks=NN_LONG),
         pytest.param("nnsig", Reset("2.3", 1.5, 5.0), marks=NN_LONG),
     ],

@@ -6,7 +6,7 @@ import click
 
 from bstool.controllers import load_controller
 from bstool.errors import InputError
-from bstool.moduleid import ModuleId, parse_failure_time
+from bstool.moduleid import ModuleId, parse_failure_time, parse_module
 
 DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS, used when the file has no max_trans
 
@@ -43,12 +43,22 @@ DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS, used when the file has no max
     help="A failed module (--fail or --fail-at) that comes back: it still holds its state in "
     "R^T and follows its rule again from R^(T+1), starting from the state it held; repeatable.",
 )
+@click.option(
+    "--held-by",
+    "held_by",
+    multiple=True,
+    metavar="N=L.M@T",
+    help="CA, a failure per link: neighbour N reads module L.M's state of transition T while "
+    "L.M is dead (until its --rejoin), instead of the S^T0 of L.M's --fail-at L.M@T0; T <= T0. "
+    "For a power cut between L.M's exchanges of one transition; repeatable.",
+)
 def command(
     controller: str,
     transitions: int | None,
     failed: tuple[str, ...],
     fail_at: tuple[str, ...],
     rejoin: tuple[str, ...],
+    held_by: tuple[str, ...],
 ) -> None:
     """Print CONTROLLER's state sequence R^0..R^T: a JSON array of T+1 frames, each a list of
     n legs of m module states (0..15). Every later stage is checked against this output."""
@@ -62,9 +72,25 @@ def command(
             raise InputError(f"module {mid} is both failed from power-up and failing at {when}",
                              hint="give it once: --fail L.M, or --fail-at L.M@T")  # fmt: skip
     back = dict(parse_failure_time(r, ctrl.legs, ctrl.modules, "--rejoin") for r in rejoin)
-    frames = ctrl.states(transitions, failed, failed_at=late, rejoin=back)
+    held: dict[ModuleId, dict[ModuleId, int]] = {}
+    for text in held_by:
+        reader, c, when = parse_held_by(text, ctrl.legs, ctrl.modules)
+        held.setdefault(c, {})[reader] = when
+    frames = ctrl.states(transitions, failed, failed_at=late, rejoin=back, held=held)
     lines = [
         "[" + ",".join("[" + ",".join(str(s) for s in leg) + "]" for leg in frame) + "]"
         for frame in frames.tolist()
     ]
     click.echo("[\n" + ",\n".join(lines) + "\n]")
+
+
+def parse_held_by(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId, int]:
+    """``"4.0=0.0@1"``: 4.0 reads 0.0's S^1 while 0.0 is dead -> (reader, module, T)."""
+    who, sep, what = text.partition("=")
+    if not sep or "@" not in what:
+        raise InputError(
+            f"bad --held-by {text!r}: expected N=L.M@T, e.g. 4.0=0.0@1 (module 4.0 reads "
+            "module 0.0's state of transition 1 while 0.0 is dead)"
+        )
+    mid, when = parse_failure_time(what, legs, modules, "--held-by")
+    return parse_module(who.strip(), legs, modules), mid, when

@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from bstool import __version__, fileio
 from bstool.controllers.angles import K
-from bstool.controllers.reference import MODELS, NN_MODELS, nn_initial_reference
+from bstool.controllers.reference import MODELS, NN_MODELS, ca_neighbours, nn_initial_reference
 from bstool.controllers.sequences import ca_sequences, nn_continue, nn_sequences
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
@@ -39,6 +39,9 @@ _HINT = "see docs/controllers.md for the format, or regenerate the file with `bs
 IntArray = npt.NDArray[np.int64]
 FailedSpec = Iterable[ModuleId | tuple[int, int] | str]
 FailedAtSpec = Mapping[ModuleId, int] | Mapping[tuple[int, int], int] | Mapping[str, int]
+Cell = tuple[int, int]
+# failed module -> {reader: T_N}; modules as ModuleId, (leg, module) or "L.M"
+HeldSpec = Mapping[Any, Mapping[Any, int]]
 
 
 def controller_hash(obj: Controller | Mapping[str, Any]) -> str:
@@ -97,6 +100,7 @@ class Controller:
         failed: FailedSpec = (),
         failed_at: FailedAtSpec | None = None,
         rejoin: FailedAtSpec | None = None,
+        held: HeldSpec | None = None,
     ) -> IntArray:
         """R^0..R^T, shape (T+1, n, m); failed modules keep their R^0 state.
 
@@ -104,11 +108,17 @@ class Controller:
         a module follows its rule up to S^T0 and then holds S^T0 (T0 = 0 is ``failed``); its
         neighbours (CA) and the modules after it (NN) read the held state.
 
+        ``held`` (CA only) makes a failure per link: ``held[c][N] = T_N`` (0 <= T_N <= T0)
+        says neighbour N of the failed module c reads S_c^(T_N) from transition T_N on, while c
+        is dead (a power cut between c's exchanges of one transition); neighbours not listed
+        read S_c^T0. All T_N = T0 is plain ``failed_at``.
+
         ``rejoin`` maps failed modules (``failed`` or ``failed_at``) to the transition T2 >= T0
         at which they come back: the module still shows its held state in R^T2 and from
         R^(T2+1) on follows its rule again, from that held state (CA: its rule on R^T2's
-        neighbourhood; NN lead: held + 1, eq. 10; NN non-lead: its upstream t+1 states). T2 = T0
-        is the healthy sequence (docs/controllers.md "Rejoin").
+        neighbourhood; NN lead: held + 1, eq. 10; NN non-lead: its upstream t+1 states); from
+        R^T2 on every neighbour reads its state again. T2 = T0 is the healthy sequence
+        (docs/controllers.md "Rejoin").
         """
         if transitions < 0:
             raise InputError(f"transitions must be 0 or more, got {transitions}")
@@ -137,21 +147,79 @@ class Controller:
                     hint="the rejoin transition T2 must be >= the failure transition T0",
                 )
             back[cell] = int(when)
+        links = self._held_links(held or {}, fail)
 
-        def held(t: int) -> list[tuple[int, int]]:
+        def frozen(t: int) -> list[tuple[int, int]]:
             """Cells holding their state in the transition R^t -> R^(t+1)."""
             return [c for c, t0 in fail.items() if t0 <= t and back.get(c, transitions) > t]
 
-        times = sorted({t for t in [*fail.values(), *back.values()] if 0 < t < transitions})
-        frames = [self._states(times[0] if times else transitions, held(0))]
+        def views(t: int, done: IntArray) -> dict[tuple[Cell, Cell], int]:
+            """(reader, c) -> S_c^(T_N) for the links held in R^t -> R^(t+1)."""
+            return {
+                (reader, c): int(done[tn][c])
+                for (c, reader), tn in links.items()
+                if tn <= t < back.get(c, transitions)
+            }
+
+        marks = [*fail.values(), *back.values(), *links.values()]
+        times = sorted({t for t in marks if 0 < t < transitions})
+        first = times[0] if times else transitions
+        done = self._states(first, frozen(0), views(0, self.initial_states[None]))
         for start, end in zip(times, [*times[1:], transitions], strict=False):
-            frames.append(self._continue(frames[-1][-1], end - start, held(start))[1:])
-        return np.concatenate(frames)
+            more = self._continue(done[-1], end - start, frozen(start), views(start, done))
+            done = np.concatenate([done, more[1:]])
+        return done
+
+    def _held_links(self, held: HeldSpec, fail: Mapping[Cell, int]) -> dict[tuple[Cell, Cell], int]:
+        """``held`` checked: (c, reader) -> T_N."""
+        links: dict[tuple[Cell, Cell], int] = {}
+        if held and self.model in NN_MODELS:
+            raise InputError(
+                "a per-link held state (held, --held-by) is for CA models only",
+                hint="an NN module's state reaches the modules after it through one relay: use "
+                "--fail-at L.M@T",
+            )
+        for item, readers in held.items():
+            (cell,) = self.failed_cells([item])
+            c = ModuleId(*cell)
+            if cell not in fail:
+                raise InputError(
+                    f"module {c} is held by its neighbours but never fails",
+                    hint="give its failure too: --fail-at L.M@T, then --held-by N=L.M@T_N",
+                )
+            readers_of_c = [
+                ModuleId(i, j)
+                for i in range(self.legs)
+                for j in range(self.modules)
+                if cell in ca_neighbours(self.model, self.legs, self.modules, i, j)
+            ]
+            for who, when in readers.items():
+                (reader,) = self.failed_cells([who])
+                n = ModuleId(*reader)
+                if n not in readers_of_c:
+                    names = ", ".join(str(x) for x in readers_of_c)
+                    raise InputError(
+                        f"module {n} does not read module {c}'s state in model {self.model}",
+                        hint=f"the modules that read {c}'s state: {names}",
+                    )
+                if not 0 <= int(when) <= fail[cell]:
+                    raise InputError(
+                        f"module {n} holds module {c}'s state of transition {when}: must be "
+                        f"0..{fail[cell]} ({c} fails at {fail[cell]} and shows no later state)",
+                        hint="--held-by N=L.M@T_N needs T_N <= T of --fail-at L.M@T",
+                    )
+                links[cell, reader] = int(when)
+        return links
 
     def _continue(
-        self, frame: IntArray, transitions: int, cells: list[tuple[int, int]]
+        self,
+        frame: IntArray,
+        transitions: int,
+        cells: list[tuple[int, int]],
+        views: Mapping[tuple[Cell, Cell], int] | None = None,
     ) -> IntArray:
-        """R^t..R^(t+transitions) from frame R^t; ``cells`` hold their state in R^t."""
+        """R^t..R^(t+transitions) from frame R^t; ``cells`` hold their state in R^t, readers
+        in ``views`` read the given state for that neighbour (CA)."""
         if self.model in NN_MODELS:
             assert self.weights is not None
             return nn_continue(self.model, frame, self.weights, transitions, cells, self.k)
@@ -162,10 +230,16 @@ class Controller:
             rules[None] if self.model == "ca2ddiff" else rules,
             transitions,
             cells,
+            views,
         )
         return seq[0].astype(np.int64)
 
-    def _states(self, transitions: int, cells: list[tuple[int, int]]) -> IntArray:
+    def _states(
+        self,
+        transitions: int,
+        cells: list[tuple[int, int]],
+        views: Mapping[tuple[Cell, Cell], int] | None = None,
+    ) -> IntArray:
         if self.model in NN_MODELS:
             assert self.weights is not None
             seq = nn_sequences(
@@ -184,6 +258,7 @@ class Controller:
                 rules[None] if self.model == "ca2ddiff" else rules,
                 transitions,
                 cells,
+                views,
             )
         return seq[0].astype(np.int64)
 

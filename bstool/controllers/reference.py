@@ -52,11 +52,14 @@ def ca_step_reference(
     lattice: Lattice,
     rules: Sequence[Sequence[int]],
     frozen: dict[Cell, int],
+    views: Mapping[tuple[Cell, Cell], int] | None = None,
 ) -> Lattice:
     """One synchronous CA transition. ``rules`` is (rule,) or (control rule, leg rule) (eq. 9).
 
-    ``frozen`` maps failed cells to the state they keep.
+    ``frozen`` maps failed cells to the state they keep; ``views`` maps (reader, neighbour) to
+    the state that reader reads for that neighbour (a per-link held state).
     """
+    seen = views or {}
     n, m = len(lattice), len(lattice[0])
     nxt = [[0] * m for _ in range(n)]
     for i in range(n):
@@ -66,7 +69,9 @@ def ca_step_reference(
                 continue
             (li, lj), (ri, rj) = ca_neighbours(model, n, m, i, j)
             rule = rules[0] if (model != "ca2ddiff" or j == 0) else rules[1]
-            nxt[i][j] = rule[rule_index(lattice[li][lj], lattice[i][j], lattice[ri][rj])]
+            left = seen.get(((i, j), (li, lj)), lattice[li][lj])
+            right = seen.get(((i, j), (ri, rj)), lattice[ri][rj])
+            nxt[i][j] = rule[rule_index(left, lattice[i][j], right)]
     return nxt
 
 
@@ -147,13 +152,15 @@ def sequence_reference(
     failed: Sequence[Cell] = (),
     failed_at: Mapping[Cell, int] | None = None,
     rejoin: Mapping[Cell, int] | None = None,
+    held: Mapping[Cell, Mapping[Cell, int]] | None = None,
     k: int = K,
 ) -> list[Lattice]:
     """R^0..R^T. For NN models ``initial`` only needs the leads; R^0 is propagated.
 
     ``failed_at[c] = T0``: cell c holds S^T0 in every transition from T0 on; ``rejoin[c] = T2``
     (>= T0): from the transition R^T2 -> R^(T2+1) on it follows its rule again, from the state
-    it held. ``failed`` cells fail at 0.
+    it held. ``failed`` cells fail at 0. CA: ``held[c][N] = T_N`` (<= T0): neighbour N reads
+    S_c^(T_N) in every transition from T_N until c rejoins (the others read S_c^T0).
     """
     if model in NN_MODELS:
         current = nn_initial_reference(model, [leg[0] for leg in initial], weights, k)
@@ -168,9 +175,15 @@ def sequence_reference(
             for (i, j), t0 in fail.items()
             if t0 <= t and back.get((i, j), transitions) > t
         }
+        views = {
+            (reader, c): frames[tn][c[0]][c[1]]
+            for c, readers in (held or {}).items()
+            for reader, tn in readers.items()
+            if tn <= t < back.get(c, transitions)
+        }
         if model in NN_MODELS:
             current = nn_step_reference(model, current, weights, frozen, k)
         else:
-            current = ca_step_reference(model, current, rules, frozen)
+            current = ca_step_reference(model, current, rules, frozen, views)
         frames.append(current)
     return frames

@@ -7,7 +7,7 @@ per-module code in :mod:`bstool.controllers.reference`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 
 import numpy as np
 import numpy.typing as npt
@@ -33,11 +33,14 @@ def ca_sequences(
     rules: IntArray,
     transitions: int,
     failed: Iterable[Cell] = (),
+    views: Mapping[tuple[Cell, Cell], int] | None = None,
 ) -> U8:
     """CA runs for P candidates.
 
     ``initial``: (P, n, m) states; ``rules``: (P, 4096) for ca1d/ca2dsing, (P, 2, 4096)
     (control rule, leg rule) for ca2ddiff. Synchronous updates; failed cells keep R^0.
+    ``views`` maps (reader, neighbour) to the state the reader reads for that neighbour in every
+    transition instead of the neighbour's own (a per-link held state, the same for all P).
     """
     if model not in CA_MODELS:
         raise ValueError(f"not a CA model: {model!r}")
@@ -57,18 +60,42 @@ def ca_sequences(
             if model == "ca2ddiff" and j > 0:
                 offset[i * m + j] = size
     frozen = _failed_mask(n, m, failed).reshape(cells)
+    seen_l, seen_r = _views(model, n, m, views or {})
     out = np.empty((p, transitions + 1, cells), dtype=np.uint8)
     state = init.reshape(p, cells)
     out[:, 0] = state
     s = state.astype(np.intp)
     for t in range(1, transitions + 1):
-        idx = (K * K) * s[:, left] + K * s + s[:, right] + offset
+        lv, rv = s[:, left], s[:, right]
+        for cell, value in seen_l.items():
+            lv[:, cell] = value
+        for cell, value in seen_r.items():
+            rv[:, cell] = value
+        idx = (K * K) * lv + K * s + rv + offset
         nxt = np.take_along_axis(table, idx, axis=1).astype(np.intp)
         if frozen.any():
             nxt[:, frozen] = s[:, frozen]
         out[:, t] = nxt
         s = nxt
     return out.reshape(p, transitions + 1, n, m)
+
+
+def _views(
+    model: str, legs: int, modules: int, views: Mapping[tuple[Cell, Cell], int]
+) -> tuple[dict[int, int], dict[int, int]]:
+    """Flat reader index -> the state it reads on its left and on its right side."""
+    seen_l: dict[int, int] = {}
+    seen_r: dict[int, int] = {}
+    for (reader, source), value in views.items():
+        left, right = ca_neighbours(model, legs, modules, *reader)
+        if source not in (left, right):
+            raise ValueError(f"cell {source} is not a neighbour of {reader}")
+        flat = reader[0] * modules + reader[1]
+        if left == source:
+            seen_l[flat] = int(value)
+        if right == source:
+            seen_r[flat] = int(value)
+    return seen_l, seen_r
 
 
 def _activate(model: str, x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:

@@ -1,0 +1,54 @@
+"""CA long outages (docs/link-redesign.md §2.4): a reset of a lead (0.0), a middle (2.3) and a
+last module (2.5) for 2, 3 and 5 s at 10 instants 1.0..3.0 s, T = 10, no physics; one JSON line
+per run (exact modules of 30, stalled, S/L/D, the reference used).
+
+    python bench/ca_long_outages.py BUILD_ROOT [ca1d,ca2dsing,ca2ddiff]
+
+BUILD_ROOT/<model> are `bstool compile` outputs.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+from bstool.controllers import load_controller
+from hil_mock.outage import compared_states, outage_reference, outages
+from hil_mock.perturb import Perturbation, Reset
+from hil_mock.robot import RobotTwin, load_build
+
+T = 10
+MODULES = ("0.0", "2.3", "2.5")
+OFF_S = (2.0, 3.0, 5.0)
+INSTANTS = [round(float(x), 2) for x in np.linspace(1.0, 3.0, 10)]
+
+
+def run(root: str, model: str, module: str, off: float, at: float) -> dict[str, object]:
+    build = load_build(f"{root}/{model}")
+    twin = RobotTwin(build, physics=False, perturb=Perturbation(resets=(Reset(module, at, off),)))
+    result = twin.run(T)
+    outs = outages(twin)
+    want = outage_reference(load_controller(build.controller_file), T, outs)
+    got = compared_states(result.states, want, outs)
+    exact = sum(seq[: T + 1] == want[:, m.leg, m.module].tolist() for m, seq in got.items())
+    o = outs[0] if outs else None
+    kind = "?" if o is None else ("S" if not o.long else ("L" if o.consistent else "D"))
+    return {"model": model, "module": module, "off": off, "at": at, "exact": int(exact),
+            "stalled": bool(result.stalled), "kind": kind,
+            "ref": o.reference_text() if o else None}  # fmt: skip
+
+
+def main() -> None:
+    root = sys.argv[1]
+    models = sys.argv[2].split(",") if len(sys.argv) > 2 else ["ca1d", "ca2dsing", "ca2ddiff"]
+    for model in models:
+        for module in MODULES:
+            for off in OFF_S:
+                for at in INSTANTS:
+                    print(json.dumps(run(root, model, module, off, at)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
