@@ -253,7 +253,8 @@ def _longest_gap_ms(plan: ModulePlan) -> float:
         if ll.master:
             gaps.append(t.master_gap_ms(ll.tx_payload, ll.rx_payload, k, nn=nn))
         else:
-            gaps.append(t.slave_receive_gap_ms(ll.rx_payload, k, nn=nn))
+            longest = max(plan.pulses) * t.pulsout_unit_ms  # the master's pulse, about ours
+            gaps.append(t.slave_receive_gap_ms(ll.rx_payload, k, nn=nn, master_pulse_ms=longest))
     return max(gaps)
 
 

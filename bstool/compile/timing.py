@@ -152,10 +152,13 @@ class CompileTiming:
             + self.statements(TRY_STATEMENTS)
         )
 
-    def slave_receive_gap_ms(self, rx: int, k: ServeConstants, *, nn: bool) -> float:
+    def slave_receive_gap_ms(
+        self, rx: int, k: ServeConstants, *, nn: bool, master_pulse_ms: float = 0.0
+    ) -> float:
         """A slave's longest time between two pulses: a request starting at the end of the
-        longest listen, received whole, then the statements to the pulse before its reply
-        (NN: the READY, the packed states after the master's pulse, the stores)."""
+        longest listen, received whole, then the statements to the pulse before its reply. NN:
+        the request is a header (or transition 0's two-byte JOIN); or, from the pulse before
+        READY, READY, the master's pulse and the packed states, and the stores."""
         listen = self.wait_ms(k.listen + k.jitter_units)
         if not nn:
             return (
@@ -164,8 +167,9 @@ class CompileTiming:
                 + self.statements(TRY_STATEMENTS + TURNAROUND_STATEMENTS + 2 * rx + GAP_STATEMENTS)
             )
         return max(
-            listen + frame_ms(1, k) + self.statements(TRY_STATEMENTS + GAP_STATEMENTS),
+            listen + frame_ms(2, k) + self.statements(TRY_STATEMENTS + GAP_STATEMENTS),
             frame_ms(1, k)
+            + master_pulse_ms
             + frame_ms(packed_bytes(rx), k)
             + self.statements(TURNAROUND_STATEMENTS + NN_STORE_STATEMENTS + rx + GAP_STATEMENTS),
         )
