@@ -272,9 +272,10 @@ class ScheduleModel:
     the twin does. ``offset`` is (A,) or, per transition, (T_fit + 1, A) (row 0 unused; later
     transitions keep the last row): under the serve loop each module keeps its own pace, so
     the modules' spread grows over the first transitions. The path is sampled when
-    ``reference`` starts transition t + 1. What it leaves out: the state-dependent part of the offsets (pulse widths and the waits computed
-    from them shift a module by a few ms either way, docs/twin.md) and the timing changes of
-    failed modules' neighbours."""
+    ``reference`` starts transition t + 1. What it leaves out: the state-dependent part of the
+    offsets (pulse widths shift a module's tries, and under the serve loop its drift from the
+    robot's mean: ~0.05 s on average between two controllers' builds, tests/test_stamp_timed.py)
+    and the timing changes of failed modules' neighbours."""
 
     grid: float
     drive: np.ndarray  # (A,) s
