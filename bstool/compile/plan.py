@@ -336,6 +336,8 @@ def hold_for_period(plans: list[ModulePlan], period_ms_wanted: float) -> int:
         if lead is None:
             return floor
         per, fixed = _nn_lead_frame_ms(plans, lead), _nn_hold_fixed_ms(plans, lead)
+    if per <= 0:  # a robot of one module: no tries, nothing to pace
+        return floor
     return max(floor, round((period_ms_wanted - fixed) / per))
 
 
