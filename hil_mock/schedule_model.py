@@ -5,7 +5,9 @@ compiles random controllers of the model (fixed seeds) with the build's own temp
 records on the twin without physics when each module's servo starts each transition
 (each module's pulse times, the record every twin keeps), and fits
 a :class:`bstool.sim.timed.ScheduleModel`: each module's power-up drive instant, the mean
-instant of every transition, each module's mean offset from it and the mean period.
+instant of every transition, each module's mean offset from it at every transition (under the
+serve loop the modules drift apart over the first transitions, each at its own pace) and the
+mean period. The representatives are compiled at the period, which sets HoldFrames.
 Applied to any candidate's state sequence it gives that candidate's stamp-timed schedule in
 microseconds. Cached in memory per (model, period, robot, transitions, representatives,
 timing model, bstool version, templates hash): a model fitted with one ``bstool.timing/1``
@@ -99,7 +101,8 @@ def fit(instants: list[np.ndarray], reference: int, states: int) -> ScheduleMode
     c = np.mean(np.stack(instants), axis=0)  # (A, T + 2)
     base = np.zeros(c.shape[1] - 1)
     base[1:] = c[:, 1:-1].mean(axis=0)
-    offset = np.mean([(x[:, 1:-1] - x[:, 1:-1].mean(axis=0)).mean(axis=1) for x in instants], 0)
+    offset = np.zeros((c.shape[1] - 1, c.shape[0]))  # per transition: the spread grows
+    offset[1:] = np.mean([(x[:, 1:-1] - x[:, 1:-1].mean(axis=0)).T for x in instants], 0)
     diffs = np.diff(base[1:])
     period = float(diffs[1:].mean() if len(diffs) > 1 else diffs.mean() if len(diffs) else 0)
     grid = CHUNK_STEPS * 0.002  # the twin's chunk at MuJoCo's 2 ms step

@@ -247,7 +247,7 @@ def test_nn_manifest_lists_bypass_wires_and_timing(tmp_path: Path) -> None:
     assert len(bypass) == legs * (modules - 2)
     assert all((w["master_pin"], w["slave_pin"]) == (3, 2) for w in bypass)
     assert len(man["links"]) - len(bypass) == legs * (modules - 1)
-    assert man["link"]["hold_frames"] == 4 and man["link"]["dead_limit_ms"] >= 1500
+    assert man["link"]["hold_frames"] > 4 and man["link"]["dead_limit_ms"] >= 1500  # 0.5 s
     for m in man["modules"]:
         assert [p["pin"] for p in m["pins"] if p["use"] != "link"] == [12]
         assert m["dead_ticks"] * 100 >= man["link"]["dead_limit_ms"]  # NN ticks: 100 ms

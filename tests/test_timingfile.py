@@ -60,12 +60,12 @@ def test_default_is_the_twin_and_compile_estimate() -> None:
 
     d = tf.DEFAULT
     assert d.base_us.value * 1000 == ht.BASE_NS and d.per_bit_us.value * 1000 == ht.PER_BIT_NS
-    assert d.run_us.value * 1000 == ht.RUN_NS == ct.RUN_MS * 1e6
+    assert d.run_us.value * 1000 == ht.RUN_NS == ct.DEFAULT.run_ms * 1e6
     assert d.pause_unit_ms.value * 1e6 == ht.PAUSE_UNIT_NS
     assert d.pulsout_unit_us.value * 1000 == ht.PULSOUT_UNIT_NS
-    assert d.serin_unit_ms.value * 1e6 == ht.SERIN_TIMEOUT_UNIT_NS == ct.SERIN_UNIT_MS * 1e6
+    assert d.serin_unit_ms.value * 1e6 == ht.SERIN_TIMEOUT_UNIT_NS == ct.DEFAULT.serin_unit_ms * 1e6
     assert d.serout_item_us.value * 1000 == ht.byte_ns(240)
-    assert ct.coefficients() == d
+    assert ct.DEFAULT.model == d and ct.DEFAULT.stmt_ms == ct.STMT_MS
 
 
 def _good() -> dict[str, Any]:

@@ -27,7 +27,8 @@ import click
     type=float,
     default=None,
     metavar="S",
-    help="Seconds per transition (default: the simulator's transition time).",
+    help="Seconds per transition: sets the programs' HoldFrames and the reference simulation"
+    " (default: the simulator's transition time).",
 )
 @click.option(
     "--module",
@@ -81,7 +82,8 @@ def command(
     )
     gap = max(m.timing["longest_servo_gap_s"] for m in result.modules)
     period = max(m.timing["nominal_transition_s"] for m in result.modules)
+    hold = result.manifest.link.hold_frames
     click.echo(
-        f"estimated period {period:.3f} s; longest servo gap {gap * 1000:.1f} ms "
-        "(timing model, for reporting only)"
+        f"estimated period {period:.3f} s (asked {result.manifest.period_s:g} s: HoldFrames "
+        f"{hold}); longest servo gap {gap * 1000:.1f} ms (timing model)"
     )

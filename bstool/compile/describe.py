@@ -69,14 +69,14 @@ def _module(ctrl: Controller, res: ModuleResult) -> bf.Module:
     )
 
 
-def _link_settings(nn: bool) -> bf.LinkSettings:
+def _link_settings(nn: bool, hold_frames: int) -> bf.LinkSettings:
     k = link.serve_constants(nn)
     return bf.LinkSettings(
         protocol="protocol/link.md",
         baud=link.BAUD,
         baudmode=link.BAUDMODE,
         pace_ms=k.pace_ms,
-        hold_frames=k.hold_frames,
+        hold_frames=hold_frames,  # from the period (plan.hold_for_period)
         listen_units=k.listen,
         reply_wait_units=k.reply_wait,
         payload_wait_units=k.payload_wait,
@@ -102,6 +102,11 @@ def manifest(
         bf.Wire(lk.master, lk.master_pin, lk.slave, lk.slave_pin, lk.colour, lk.bypass)
         for lk in links(ctrl.model, ctrl.legs, ctrl.modules)
     ]
+    hold = (
+        results[0].plan.hold_frames
+        if results
+        else link.serve_constants(ctrl.model in NN_MODELS).hold_frames
+    )
     order = [
         bf.FlashStep(res.plan.mid, _flash_slots(res))
         for res in sorted(results, key=lambda r: r.plan.mid)
@@ -117,7 +122,7 @@ def manifest(
         robot=bf.RobotSize(ctrl.legs, ctrl.modules, ctrl.k),
         period_s=period,
         tokenized=tokenized,
-        link=_link_settings(ctrl.model in NN_MODELS),
+        link=_link_settings(ctrl.model in NN_MODELS, hold),
         announcement=announce.DESCRIPTION,
         modules=[_module(ctrl, res) for res in results],
         links=wires,

@@ -73,6 +73,8 @@ class ModulePlan:
     rx_size: int = 1
     serve: wire.ServeConstants = wire.CA  # the serve loop's constants (bstool.wire.link)
     dead_ticks: int = 0  # DeadTicks: silent ticks before a wire is dead (>= the dead-limit)
+    hold_frames: int = wire.CA.hold_frames  # HoldFrames: from the period (hold_for_period)
+    timing: timing.CompileTiming = timing.DEFAULT  # the estimates' timing model
 
     @property
     def label(self) -> str:
@@ -111,15 +113,19 @@ def build_plans(
     period_s: float,
     hash8: str,
     only: list[ModuleId] | None = None,
+    *,
+    model: timing.CompileTiming = timing.DEFAULT,
 ) -> list[ModulePlan]:
-    """One plan per module (all, or ``only``), in canonical order."""
+    """One plan per module (all, or ``only``), in canonical order, with HoldFrames for the
+    period ``period_s`` (the whole robot's, whatever ``only``) by the timing ``model``."""
     n, m = ctrl.legs, ctrl.modules
     r0 = ctrl.states(0)[0]
     all_links = links(ctrl.model, n, m)
     wanted = set(only) if only else None
     every = [
-        _plan(ctrl, mid, all_links, r0, calibration, period_s, hash8) for mid in all_modules(n, m)
+        _plan(ctrl, mid, all_links, r0, calibration, hash8, model) for mid in all_modules(n, m)
     ]
+    set_hold_frames(every, hold_for_period(every, period_s * 1000))
     return [p for p in every if wanted is None or p.mid in wanted]
 
 
@@ -129,8 +135,8 @@ def _plan(
     all_links: list[Link],
     r0: object,
     calibration: Calibration,
-    period_s: float,
     hash8: str,
+    model: timing.CompileTiming,
 ) -> ModulePlan:
     import numpy as np
 
@@ -154,6 +160,7 @@ def _plan(
         links=[],
         known=known,
         known_var="nb" if family == "ca" else "up",
+        timing=model,
     )
     if family == "ca":
         for lk in mine:
@@ -215,54 +222,156 @@ def _plan(
     return plan
 
 
+def _pulse_ms(plan: ModulePlan) -> float:
+    return plan.pulses[len(plan.pulses) // 2] * plan.timing.pulsout_unit_ms
+
+
 def _tries(plan: ModulePlan, *, jitter: float) -> list[float]:
     """Per wire, the length of the try that wire usually costs in a round (timing model): a
     master's answered try, a slave's listen (a master sends to it only until it has the reply
     and then every 4th round, so most of a slave's tries listen out)."""
-    k, nn = plan.serve, plan.family == "nn"
-    pulse = plan.pulses[len(plan.pulses) // 2] * timing.PULSOUT_UNIT_MS
+    k, nn, t = plan.serve, plan.family == "nn", plan.timing
+    pulse = _pulse_ms(plan)
     out = []
     for ll in plan.links:
         if ll.master and not (nn and ll.link.bypass):
-            out.append(timing.master_try_ms(pulse, ll.tx_payload, ll.rx_payload, k, nn=nn))
+            out.append(t.master_try_ms(pulse, ll.tx_payload, ll.rx_payload, k, nn=nn))
         elif not ll.master:
             every = k.keepalive_rounds if ll.link.bypass else 1
-            out.append(timing.listen_ms(pulse, k, jitter=jitter) / every)
+            out.append(t.listen_ms(pulse, k, jitter=jitter) / every)
     return out
 
 
 def _longest_gap_ms(plan: ModulePlan) -> float:
-    k, nn = plan.serve, plan.family == "nn"
-    gaps = [timing.transition_end_ms() + timing.listen_ms(0.0, k, jitter=k.jitter_units)]
+    k, nn, t = plan.serve, plan.family == "nn", plan.timing
+    gaps = [t.listen_ms(0.0, k, jitter=k.jitter_units)]
+    if not nn:
+        gaps.append(t.transition_end_ms() + gaps[0])
+    elif plan.nn_lead:
+        gaps.append(timing.NN_IDLE_PAUSE_MS + t.statements(timing.NN_LEAD_GAP_STATEMENTS))
     for ll in plan.links:
         if ll.master:
-            gaps.append(timing.master_gap_ms(0.0, ll.tx_payload, ll.rx_payload, k, nn=nn))
+            gaps.append(t.master_gap_ms(ll.tx_payload, ll.rx_payload, k, nn=nn))
         else:
-            gaps.append(timing.slave_receive_gap_ms(ll.rx_payload, k, nn=nn))
+            longest = max(plan.pulses) * t.pulsout_unit_ms  # the master's pulse, about ours
+            gaps.append(t.slave_receive_gap_ms(ll.rx_payload, k, nn=nn, master_pulse_ms=longest))
     return max(gaps)
 
 
-def period_ms(plans: list[ModulePlan]) -> float:
-    """The robot's nominal period (timing model, for reporting only). CA: every module shows
-    a state for HoldFrames tries, the slowest module's tries set the pace. NN: the relay; at
-    each module a transition needs NN_MEETINGS meetings of a master's try with a listen on
-    its slave wire, each after about (slave round / listen) master rounds."""
-    if not plans:
-        return 0.0
-    mean = 3.5
-    if plans[0].family == "ca":
-        slowest = max(max(_tries(p, jitter=mean), default=0.0) for p in plans)
-        return plans[0].serve.hold_frames * slowest + timing.transition_end_ms()
-    k = plans[0].serve
-    rounds = {p.mid: sum(_tries(p, jitter=mean)) for p in plans}
-    listen = timing.listen_ms(0.0, k, jitter=mean)
+MEAN_JITTER = 3.5
+
+
+def _ca_frame_ms(plans: list[ModulePlan]) -> float:
+    """CA: the period per hold frame: the slowest module's longest usual try, and the waits
+    for the neighbours (timing.CA_COUPLING)."""
+    longest = max(max(_tries(p, jitter=MEAN_JITTER), default=0.0) for p in plans)
+    return longest * timing.CA_COUPLING
+
+
+def _nn_meeting_ms(plans: list[ModulePlan], p: ModulePlan, ll: LocalLink) -> float:
+    """NN: a master's REQ meeting a listen on its slave: about (slave round / listen) tries,
+    each a master round."""
+    by = {q.mid: q for q in plans}
+    listen = p.timing.listen_ms(0.0, p.serve, jitter=MEAN_JITTER)
+    peer = sum(_tries(by[ll.peer], jitter=MEAN_JITTER)) if ll.peer in by else listen
+    return peer / listen * sum(_tries(p, jitter=MEAN_JITTER))
+
+
+def _nn_relay_ms(plans: list[ModulePlan]) -> float:
+    """NN: the relay's period at the busiest hop: NN_MEETINGS meetings and a take."""
     worst = 0.0
     for p in plans:
         for ll in p.links:
             if ll.master and not ll.link.bypass:
-                tries = rounds[ll.peer] / listen
-                worst = max(worst, timing.NN_MEETINGS * tries * rounds[p.mid])
+                take = p.timing.take_ms(_pulse_ms(p), ll.tx_payload, p.serve)
+                worst = max(worst, timing.NN_MEETINGS * _nn_meeting_ms(plans, p, ll) + take)
     return worst
+
+
+def _nn_lead_frame_ms(plans: list[ModulePlan], lead: ModulePlan) -> float:
+    """NN: the lead's mean servo frame while it holds a state module 1 shows: a keep-alive
+    poll every keepalive_rounds rounds (answered when module 1 listens: its listen's share of
+    its round), idle frames between."""
+    k, t, pulse = lead.serve, lead.timing, _pulse_ms(lead)
+    chain = next(ll for ll in lead.links if ll.master and not ll.link.bypass)
+    by = {q.mid: q for q in plans}
+    listen = t.listen_ms(pulse, k, jitter=MEAN_JITTER)
+    peer = by.get(chain.peer)
+    share = listen / sum(_tries(peer, jitter=MEAN_JITTER)) if peer is not None else 1.0
+    poll = share * t.master_try_ms(pulse, 1, 0, k, nn=True) + (1 - share) * t.miss_ms(pulse, k)
+    every = k.keepalive_rounds
+    return ((every - 1) * t.idle_ms(pulse) + poll) / every
+
+
+def _nn_hold_fixed_ms(plans: list[ModulePlan], lead: ModulePlan) -> float:
+    """NN: a lead's transition besides its hold: the take by module 1 after it advances."""
+    chain = next(ll for ll in lead.links if ll.master and not ll.link.bypass)
+    return _nn_meeting_ms(plans, lead, chain) + lead.timing.take_ms(
+        _pulse_ms(lead), chain.tx_payload, lead.serve
+    )
+
+
+def _nn_lead(plans: list[ModulePlan]) -> ModulePlan | None:
+    return next((p for p in plans if p.nn_lead and p.links), None)
+
+
+def min_hold_frames(plans: list[ModulePlan]) -> int:
+    """The protocol's floor of HoldFrames: NN the lead's floor (bstool.wire.link NN); CA the
+    tries of keepalive_rounds rounds of the module with most wires (a master that has its
+    reply polls every keepalive_rounds-th round: holding less does not make a robot faster)."""
+    if plans[0].family == "nn":
+        return wire.NN.hold_frames
+    wires = max(len(p.links) for p in plans)
+    return wire.CA.keepalive_rounds * max(1, wires)
+
+
+def hold_for_period(plans: list[ModulePlan], period_ms_wanted: float) -> int:
+    """HoldFrames that make the unperturbed period about ``period_ms_wanted`` at the timing
+    model's speed (never below :func:`min_hold_frames`)."""
+    floor = min_hold_frames(plans)
+    if plans[0].family == "ca":
+        per, fixed = _ca_frame_ms(plans), plans[0].timing.transition_end_ms()
+    else:
+        lead = _nn_lead(plans)
+        if lead is None:
+            return floor
+        per, fixed = _nn_lead_frame_ms(plans, lead), _nn_hold_fixed_ms(plans, lead)
+    if per <= 0:  # a robot of one module: no tries, nothing to pace
+        return floor
+    return max(floor, round((period_ms_wanted - fixed) / per))
+
+
+def set_hold_frames(plans: list[ModulePlan], hold: int) -> None:
+    for p in plans:
+        p.hold_frames = hold
+
+
+def period_ms(plans: list[ModulePlan]) -> float:
+    """The robot's nominal period (timing model, for reporting and for HoldFrames). CA: every
+    module shows a state for HoldFrames tries, the slowest module's tries set the pace. NN: the
+    longer of the relay (NN_MEETINGS meetings of a master's try with a listen per transition at
+    the busiest hop, and a take) and the lead's hold (HoldFrames lead frames and module 1's
+    take)."""
+    if not plans:
+        return 0.0
+    hold = plans[0].hold_frames
+    if plans[0].family == "ca":
+        return hold * _ca_frame_ms(plans) + plans[0].timing.transition_end_ms()
+    lead = _nn_lead(plans)
+    held = 0.0
+    if lead is not None:
+        held = hold * _nn_lead_frame_ms(plans, lead) + _nn_hold_fixed_ms(plans, lead)
+    return max(_nn_relay_ms(plans), held)
+
+
+def floor_period_ms(plans: list[ModulePlan]) -> float:
+    """The estimated period at the floor of HoldFrames: what the handshakes can do."""
+    saved = plans[0].hold_frames
+    set_hold_frames(plans, min_hold_frames(plans))
+    try:
+        return period_ms(plans)
+    finally:
+        set_hold_frames(plans, saved)
 
 
 def estimates(plan: ModulePlan, period: float) -> dict[str, float]:

@@ -11,14 +11,14 @@ correctness rests on the handshakes.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
+from dataclasses import dataclass
 
 from bstool.timingfile import DEFAULT as DEFAULT_MODEL
 from bstool.timingfile import TimingModel
 from bstool.wire.link import ServeConstants, byte_ms
 
 STMT_MS = 0.1
+"""A statement at the default model's speed (instruction time ratio 1)."""
 RUN_MS = 0.3
 SERIN_UNIT_MS = 0.4  # BS2sx SERIN timeout unit
 PULSOUT_UNIT_MS = 0.0008
@@ -32,28 +32,38 @@ TRY_STATEMENTS = 6
 """The statements of one try besides its PULSOUT, SEROUT and SERIN (frames, RANDOM, hdr = 0,
 the IFs on the header, the jump)."""
 TURNAROUND_STATEMENTS = 5
-"""A slave from the end of a request's payload to its reply's SEROUT: the check, heard, the IFs
-on the header, the pulse before the reply."""
+"""A slave from the end of a request to its reply's SEROUT: the checks, heard, the IFs on the
+header, the pulse before the reply."""
 END_STATEMENTS = 12
-"""The end of a transition: the tick, the hold and got checks, prev, the rule's lookup."""
-NN_MEETINGS = 3
-"""NN: the meetings on a transition's critical path at one module: the upstream's REQ heard,
-the downstream's TOOK and its REP (protocol/link.md §4.6)."""
+"""CA: the end of a transition: the tick, the hold and got checks, prev, the rule's lookup."""
+CA_COUPLING = 1.087
+"""CA: the period per hold frame over the slowest module's longest usual try: after its hold a
+module still waits for its neighbours' S^t, and they for theirs; calibrated on the twin at
+-T 30 (ca1d 1.11, ca2dsing 1.06, ca2ddiff 1.07 at 0.3-0.8 s, docs/compile.md)."""
 GAP_STATEMENTS = 20
-"""The statements between tries that the try counts above leave out (the tick bookkeeping every
-16 rounds, jumps between wires); calibrated on the twin's interpreter (CA: 23-24 ms measured
-against 22.7 ms without them)."""
-NN_TAKE_STATEMENTS = 25
-"""NN: a slave between a REQ's payload and the pulse before its TOOK: the stores, the NnTable
-lookup and the relay set-up (GOSUB Take); calibrated on the twin (40 ms measured on the last
-module of a leg)."""
-NN_CHUNK = 3
-"""NN: a REQ is sent in SEROUTs of this many bytes with a servo pulse between them."""
+"""The statements between tries that the try counts above leave out (the tick bookkeeping,
+jumps between wires); calibrated on the twin's interpreter (docs/compile.md)."""
+NN_STORE_STATEMENTS = 4
+"""NN: a slave between the packed states and the pulse before TOOK, besides one store per
+state: the check, the joining test (protocol/link.md §4.6)."""
+NN_MEETINGS = 5.6
+"""NN: the meetings on a transition's critical path at one hop: the master's REQ heard by a
+listening slave (READY, the states and TOOK in one try), and its REP once the slave shows it;
+each costs about (slave round / listen) master rounds (docs/compile.md, calibrated there)."""
+NN_IDLE_PAUSE_MS = 16
+"""NN: the lead's idle frame (a keep-alive round skipped) pauses this long (nn_main.bsx.j2)."""
+NN_LEAD_GAP_STATEMENTS = 60
+"""NN: the lead's longest gap besides its idle pause: the idle frame's round end, the 100 ms
+tick's bookkeeping and the advance (Pending) before the next pulse; calibrated on the twin
+(21.4 ms measured on the leads of nnsin/nnsig, docs/compile.md)."""
+NN_IDLE_STATEMENTS = 10
+"""NN: the statements of the lead's idle frame and its round's end (nn_main.bsx.j2 L0Idle,
+the bypass and tick tests, Ticked, Steady)."""
 
 
-def transition_end_ms() -> float:
-    """From the last try of a transition to the first of the next: the rule slot and back."""
-    return 2 * RUN_MS + END_STATEMENTS * STMT_MS
+def packed_bytes(states: int) -> int:
+    """NN: the bytes of ``states`` packed two to a byte after READY, with the check nibble."""
+    return states // 2 + 1
 
 
 def frame_ms(nbytes: int, k: ServeConstants) -> float:
@@ -61,99 +71,121 @@ def frame_ms(nbytes: int, k: ServeConstants) -> float:
     return nbytes * byte_ms() + max(0, nbytes - 1) * k.pace_ms
 
 
-def _wait_ms(units: int, k: ServeConstants, jitter: float) -> float:
-    return (units + jitter) * SERIN_UNIT_MS
+@dataclass(frozen=True)
+class CompileTiming:
+    """The timing model the estimates use: the default or a measured one (``compile --timing
+    F``), as a value passed to the plans, never a process-wide setting."""
 
+    model: TimingModel = DEFAULT_MODEL
 
-def master_try_ms(pulse_ms: float, tx: int, rx: int, k: ServeConstants, *, nn: bool) -> float:
-    """A master's try that is answered: its pulse, its request, the slave's turnaround (its
-    pulse before the reply) and the reply."""
-    chunks = -(-(1 + tx) // NN_CHUNK) if nn else 1
-    return (
-        chunks * pulse_ms
-        + frame_ms(1 + tx, k)
-        + (chunks - 1) * STMT_MS
-        + TURNAROUND_STATEMENTS * STMT_MS
-        + pulse_ms
-        + frame_ms(1 + rx, k)
-        + TRY_STATEMENTS * STMT_MS
-    )
+    @property
+    def stmt_ms(self) -> float:
+        return STMT_MS * self.model.instruction_time_ratio.value
 
+    @property
+    def hold_stmt_ms(self) -> float:
+        return HOLD_STMT_MS * self.model.instruction_time_ratio.value
 
-def master_miss_ms(
-    pulse_ms: float, tx: int, k: ServeConstants, *, nn: bool, jitter: float
-) -> float:
-    """A master's try that nobody answers: its request and the whole reply wait."""
-    chunks = -(-(1 + tx) // NN_CHUNK) if nn else 1
-    return (
-        chunks * pulse_ms
-        + frame_ms(1 + tx, k)
-        + _wait_ms(k.reply_wait, k, jitter)
-        + TRY_STATEMENTS * STMT_MS
-    )
+    @property
+    def run_ms(self) -> float:
+        return self.model.run_us.value / 1000
 
+    @property
+    def pulsout_unit_ms(self) -> float:
+        return self.model.pulsout_unit_us.value / 1000
 
-def listen_ms(pulse_ms: float, k: ServeConstants, *, jitter: float) -> float:
-    """A slave's try that hears nothing: its pulse and the whole listen."""
-    return pulse_ms + _wait_ms(k.listen, k, jitter) + TRY_STATEMENTS * STMT_MS
+    @property
+    def serin_unit_ms(self) -> float:
+        return self.model.serin_unit_ms.value
 
+    def statements(self, n: float) -> float:
+        return n * self.stmt_ms
 
-def slave_receive_gap_ms(rx: int, k: ServeConstants, *, nn: bool) -> float:
-    """A slave's longest time between its try's pulse and the pulse before its reply: a request
-    starting at the end of the longest listen, received whole (the payload at the pace)."""
-    take = NN_TAKE_STATEMENTS if nn else 0
-    return (
-        _wait_ms(k.listen, k, k.jitter_units)
-        + frame_ms(1 + rx, k)
-        + (TRY_STATEMENTS + TURNAROUND_STATEMENTS + 2 * rx + take + GAP_STATEMENTS) * STMT_MS
-    )
+    def wait_ms(self, units: float) -> float:
+        return units * self.serin_unit_ms
 
+    def transition_end_ms(self) -> float:
+        """CA: from the last try of a transition to the first of the next: the rule slot and
+        back."""
+        return 2 * self.run_ms + self.statements(END_STATEMENTS)
 
-def master_gap_ms(pulse_ms: float, tx: int, rx: int, k: ServeConstants, *, nn: bool) -> float:
-    """A master's longest time between two pulses: the longest chunk of its request, then the
-    longest reply wait with a reply starting at its end, and the next try's statements."""
-    del pulse_ms  # the gap runs from the end of a pulse to the start of the next
-    first = min(1 + tx, NN_CHUNK) if nn else 1 + tx
-    return (
-        frame_ms(first, k)
-        + _wait_ms(k.reply_wait, k, k.jitter_units)
-        + frame_ms(1 + rx, k)
-        + (2 * TRY_STATEMENTS + GAP_STATEMENTS) * STMT_MS
-    )
-
-
-# ---- issue 13 §2: a measured timing file (bstool.timingfile, bstool probe) ------------------
-_active = DEFAULT_MODEL
-_ESTIMATE = {"STMT_MS": STMT_MS, "HOLD_STMT_MS": HOLD_STMT_MS, "RUN_MS": RUN_MS,
-             "PULSOUT_UNIT_MS": PULSOUT_UNIT_MS, "SERIN_UNIT_MS": SERIN_UNIT_MS}  # fmt: skip
-
-
-def coefficients() -> TimingModel:
-    """The timing model the estimates use now: the default, or the one of :func:`measured`."""
-    return _active
-
-
-@contextmanager
-def measured(model: TimingModel | None) -> Iterator[None]:
-    """Estimate with ``model`` inside the block: statements (STMT_MS, HOLD_STMT_MS) × its
-    instruction time ratio, its RUN overhead, PULSOUT and SERIN-timeout units. Not thread-safe
-    (compile runs on one thread)."""
-    global _active, STMT_MS, HOLD_STMT_MS, RUN_MS, PULSOUT_UNIT_MS, SERIN_UNIT_MS
-    if model is None:
-        yield
-        return
-    r = model.instruction_time_ratio.value
-    _active = model
-    STMT_MS = _ESTIMATE["STMT_MS"] * r
-    HOLD_STMT_MS = _ESTIMATE["HOLD_STMT_MS"] * r
-    RUN_MS = model.run_us.value / 1000
-    PULSOUT_UNIT_MS = model.pulsout_unit_us.value / 1000
-    SERIN_UNIT_MS = model.serin_unit_ms.value
-    try:
-        yield
-    finally:
-        _active = DEFAULT_MODEL
-        STMT_MS, HOLD_STMT_MS, RUN_MS = (
-            _ESTIMATE[k] for k in ("STMT_MS", "HOLD_STMT_MS", "RUN_MS")
+    def master_try_ms(
+        self, pulse_ms: float, tx: int, rx: int, k: ServeConstants, *, nn: bool
+    ) -> float:
+        """A master's usual answered try: its pulse, its request, the slave's turnaround (its
+        pulse before the reply) and the reply. NN: the header-only poll and a bare reply (WAIT,
+        REP, READY's header); the states follow only once per transition (:meth:`take_ms`)."""
+        req, rep = (1, 1) if nn else (1 + tx, 1 + rx)
+        return (
+            2 * pulse_ms
+            + frame_ms(req, k)
+            + frame_ms(rep, k)
+            + self.statements(TURNAROUND_STATEMENTS + TRY_STATEMENTS)
         )
-        PULSOUT_UNIT_MS, SERIN_UNIT_MS = _ESTIMATE["PULSOUT_UNIT_MS"], _ESTIMATE["SERIN_UNIT_MS"]
+
+    def take_ms(self, pulse_ms: float, states: int, k: ServeConstants) -> float:
+        """NN: what a take adds to a poll answered READY: the master's pulse and the packed
+        states, the slave's stores, its pulse and TOOK."""
+        return (
+            2 * pulse_ms
+            + frame_ms(packed_bytes(states), k)
+            + frame_ms(1, k)
+            + self.statements(NN_STORE_STATEMENTS + states + TRY_STATEMENTS)
+        )
+
+    def listen_ms(self, pulse_ms: float, k: ServeConstants, *, jitter: float) -> float:
+        """A slave's try that hears nothing: its pulse and the whole listen."""
+        return pulse_ms + self.wait_ms(k.listen + jitter) + self.statements(TRY_STATEMENTS)
+
+    def idle_ms(self, pulse_ms: float) -> float:
+        """NN: the lead's plain servo frame while its keep-alive round is skipped, with the
+        round's end (the bypass and tick tests, the hold checks)."""
+        return pulse_ms + NN_IDLE_PAUSE_MS + self.statements(NN_IDLE_STATEMENTS)
+
+    def miss_ms(self, pulse_ms: float, k: ServeConstants) -> float:
+        """NN: a master's header-only poll that nobody answers: its pulse, the header and the
+        whole reply wait (the jitter at its mean)."""
+        return (
+            pulse_ms
+            + frame_ms(1, k)
+            + self.wait_ms(k.reply_wait + k.jitter_units / 2)
+            + self.statements(TRY_STATEMENTS)
+        )
+
+    def slave_receive_gap_ms(
+        self, rx: int, k: ServeConstants, *, nn: bool, master_pulse_ms: float = 0.0
+    ) -> float:
+        """A slave's longest time between two pulses: a request starting at the end of the
+        longest listen, received whole, then the statements to the pulse before its reply. NN:
+        the request is a header (or transition 0's two-byte JOIN); or, from the pulse before
+        READY, READY, the master's pulse and the packed states, and the stores."""
+        listen = self.wait_ms(k.listen + k.jitter_units)
+        if not nn:
+            return (
+                listen
+                + frame_ms(1 + rx, k)
+                + self.statements(TRY_STATEMENTS + TURNAROUND_STATEMENTS + 2 * rx + GAP_STATEMENTS)
+            )
+        return max(
+            listen + frame_ms(2, k) + self.statements(TRY_STATEMENTS + GAP_STATEMENTS),
+            frame_ms(1, k)
+            + master_pulse_ms
+            + frame_ms(packed_bytes(rx), k)
+            + self.statements(TURNAROUND_STATEMENTS + NN_STORE_STATEMENTS + rx + GAP_STATEMENTS),
+        )
+
+    def master_gap_ms(self, tx: int, rx: int, k: ServeConstants, *, nn: bool) -> float:
+        """A master's longest time between two pulses: its request (NN: the poll, or the packed
+        states), the longest reply wait with a reply starting at its end, and the next try's
+        statements."""
+        first = max(1, packed_bytes(tx)) if nn else 1 + tx
+        reply = 1 if nn else 1 + rx
+        return (
+            frame_ms(first, k)
+            + self.wait_ms(k.reply_wait + k.jitter_units)
+            + frame_ms(reply, k)
+            + self.statements(2 * TRY_STATEMENTS + GAP_STATEMENTS)
+        )
+
+
+DEFAULT = CompileTiming()

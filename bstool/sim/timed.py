@@ -269,15 +269,18 @@ class ScheduleModel:
     servo ``a`` is limp from power-up until ``drive[a]`` (s), then holds R^0; its target
     becomes R^t at ``base[t] + offset[a]`` (t = 1..len(base)-1; later transitions follow at
     ``period`` spacing), applied at the start of the ``grid`` chunk holding that instant, as
-    the twin does. The path is sampled when ``reference`` starts transition t + 1. What it
-    leaves out: the state-dependent part of the offsets (pulse widths and the waits computed
-    from them shift a module by a few ms either way, docs/twin.md) and the timing changes of
-    failed modules' neighbours."""
+    the twin does. ``offset`` is (A,) or, per transition, (T_fit + 1, A) (row 0 unused; later
+    transitions keep the last row): under the serve loop each module keeps its own pace, so
+    the modules' spread grows over the first transitions. The path is sampled when
+    ``reference`` starts transition t + 1. What it leaves out: the state-dependent part of the
+    offsets (pulse widths shift a module's tries, and under the serve loop its drift from the
+    robot's mean: ~0.05 s on average between two controllers' builds, tests/test_stamp_timed.py)
+    and the timing changes of failed modules' neighbours."""
 
     grid: float
     drive: np.ndarray  # (A,) s
     base: np.ndarray  # (T_fit + 1,) s; base[0] unused (0)
-    offset: np.ndarray  # (A,) s
+    offset: np.ndarray  # (A,) or (T_fit + 1, A) s
     period: float
     reference: int
     angles: np.ndarray  # (k,) rad per state
@@ -296,7 +299,11 @@ class ScheduleModel:
         )
         out = np.empty((transitions + 2, self.actuator_count))
         out[0] = self.drive
-        out[1:] = base[:, None] + self.offset[None, :]
+        if self.offset.ndim == 2:
+            offset = self.offset[np.minimum(t, len(self.offset) - 1)]
+        else:
+            offset = self.offset[None, :]
+        out[1:] = base[:, None] + offset
         return np.floor(out / self.grid + 1e-9) * self.grid
 
     def schedule(self, states: np.ndarray) -> StampSchedule:
