@@ -59,7 +59,7 @@ class ServeConstants:
 
 
 CA = ServeConstants(
-    hold_frames=26,  # the period policy: 0.44-0.45 s unperturbed (issue 12: <= 0.50 s)
+    hold_frames=26,  # fallback only: a build derives HoldFrames from --period
     reply_wait=16,  # 6.4-9.2 ms: twice the slowest reply start at timing scale 3
     listen=22,  # 8.8-11.6 ms: longer than the master's retry interval, so a retry meets a listen
     payload_wait=8,  # 3.2 ms: one byte (2.08 ms) after the header at the 2 ms pace, with margin
@@ -69,7 +69,7 @@ CA = ServeConstants(
     keepalive_rounds=4,  # every round doubled a 2-D lead's period; silence must mean "off"
 )
 NN = ServeConstants(
-    hold_frames=4,  # the lead's floor: the relay's round trips set the NN period, not the hold
+    hold_frames=4,  # the floor: a build derives HoldFrames from --period
     reply_wait=16,  # as CA
     listen=22,  # as CA
     payload_wait=25,  # 10 ms: the one byte after a JOIN or WELCOME header, generous (rare frames)
