@@ -178,12 +178,17 @@ def compared_states(
 def compared_record(seq: list[int], outage: Outage, reference: list[int]) -> list[int]:
     """The reset module's own record as it is compared: from T + 1 to the transition before its
     record restarts it showed states no neighbour received, then nothing (limp); there the
-    reference (its held state) stands in for it."""
+    reference (its held state) stands in for it. From T itself when it never showed S^T: an NN
+    module relays S^T before it shows it, so a power-off between its downstream's TOOK and its
+    first pulse of S^T leaves S^T held downstream and nothing shown."""
     if not outage.long or outage.failed_at is None:
         return seq
     stop = len(reference) if outage.rejoined_at is None else outage.rejoined_at
     out = list(seq) + [OFF_STATE] * max(0, stop - len(seq))
-    for t in range(outage.failed_at + 1, min(stop, len(out), len(reference))):
+    first = outage.failed_at + (
+        0 <= outage.failed_at < len(out) and out[outage.failed_at] != OFF_STATE
+    )
+    for t in range(first, min(stop, len(out), len(reference))):
         out[t] = reference[t]
     return out
 
