@@ -165,14 +165,25 @@ def outage_reference(
 def compared_states(
     states: Mapping[ModuleId, list[int]], reference: np.ndarray, outs: Sequence[Outage]
 ) -> dict[ModuleId, list[int]]:
-    """Every module's record as it is compared with ``reference`` (:func:`compared_record`)."""
+    """Every module's record as it is compared with ``reference`` (:func:`compared_record`;
+    a short outage's skipped transitions: :func:`unshown`)."""
     long = {o.module: o for o in outs if o.long}
-    return {
-        m: compared_record(seq, long[m], reference[:, m.leg, m.module].tolist())
-        if m in long
-        else seq
-        for m, seq in states.items()
-    }
+    short = {o.module for o in outs if not o.long}
+    out = {}
+    for m, seq in states.items():
+        ref = reference[:, m.leg, m.module].tolist()
+        out[m] = compared_record(seq, long[m], ref) if m in long else seq
+        if m in short:
+            out[m] = unshown(out[m], ref)
+    return out
+
+
+def unshown(seq: list[int], reference: list[int]) -> list[int]:
+    """A short outage of an NN module: it relays S^(t+1) before it shows it, so a power-off
+    between its downstream's TOOK and its first pulse of S^(t+1) leaves that state taken by its
+    neighbours (nobody went on without it) but never shown; it rejoins at the next. The
+    reference stands in for that transition (``OFF_STATE`` in the record), as for a long one."""
+    return [reference[t] if v == OFF_STATE and t < len(reference) else v for t, v in enumerate(seq)]
 
 
 def compared_record(seq: list[int], outage: Outage, reference: list[int]) -> list[int]:
@@ -202,6 +213,7 @@ __all__ = [
     "outage_reference",
     "outages",
     "readers",
+    "unshown",
 ]
 
 
