@@ -108,7 +108,7 @@ def outages(twin: RobotTwin) -> list[Outage]:
                 held = {n: w for n, (w, _) in waits.items() if w < t2}
             else:  # long: it rejoined past what it had shown, or not with the state it showed
                 shown = at < len(before) and before[at] == rec.states[at]
-                held = {} if shown else {n: w - 1 for n, (w, _) in waits.items() if w - 1 < at}
+                held = {} if shown else {n: w - lag for n, (w, _) in waits.items() if w - lag < at}
                 t2 = at
             held = {**went_on, **held}
             out.append(Outage(mid, off_s, booted, held, t2 if held else None, at))

@@ -1,9 +1,9 @@
 """The serve-loop link (protocol/link.md; measurements in docs/link-redesign.md §2.4–2.5) under a
 ``--reset`` longer than the dead-limit and a ``--cut`` wire, on the twin without physics (T =
-8). A long outage is compared with ``states(failed_at={c: T}, rejoin={c: T2})``, T and T2 read
-from the record (hil_mock/outage.py); a cut wire with each end reading the other's R^0
-(``cut_reference``). The cases it does not pass yet are strict xfails (docs/link-redesign.md
-§2.4).
+8; NN outages T = 20, so that the module is back within the run). A long outage is compared
+with ``states(failed_at={c: T}, rejoin={c: T2})``, T and T2 read from the record
+(hil_mock/outage.py); a cut wire with each end reading the other's R^0 (``cut_reference``). The
+cases it does not pass yet are strict xfails (docs/link-redesign.md §2.4).
 """
 
 from __future__ import annotations
@@ -33,19 +33,22 @@ def builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Build]:
     return out
 
 
-def _outage_exact(build: Build, reset: Reset) -> None:
+def _outage_exact(build: Build, reset: Reset, transitions: int = T) -> None:
     twin = RobotTwin(build, physics=False, perturb=Perturbation(resets=(reset,)))
-    result = twin.run(T)
+    result = twin.run(transitions)
     outs = outages(twin)
     assert outs and outs[0].long  # its neighbours went on without it
-    want = outage_reference(load_controller(build.controller_file), T, outs)
+    if transitions > T:  # long enough for the module to be back: it rejoined
+        assert outs[0].rejoin is not None
+    want = outage_reference(load_controller(build.controller_file), transitions, outs)
     got = compared_states(result.states, want, outs)
-    bad = [m for m, seq in got.items() if seq[: T + 1] != want[:, m.leg, m.module].tolist()]
+    bad = [
+        m for m, seq in got.items() if seq[: transitions + 1] != want[:, m.leg, m.module].tolist()
+    ]
     assert not bad, f"{outs[0].reference_text()}: {bad}"
 
 
 SPLIT = pytest.mark.xfail(strict=True, reason="neighbours hold different T: per-link (§2.4)")
-NN = pytest.mark.xfail(strict=True, reason="NN draft: downstream keeps the held state (§2.4)")
 
 
 @pytest.mark.parametrize(
@@ -58,8 +61,6 @@ NN = pytest.mark.xfail(strict=True, reason="NN draft: downstream keeps the held 
         ("ca1d", Reset("2.3", 1.62, 3.0)),  # rejoined with 2.4 four transitions ahead
         ("ca1d", Reset("2.3", 1.5, 5.0)),  # at T = 10 it stalls (docs/link-redesign.md §2.4)
         pytest.param("ca2dsing", Reset("0.0", 1.5, 3.0), marks=SPLIT),
-        ("nnsin", Reset("2.3", 2.37, 5.0)),
-        pytest.param("nnsig", Reset("2.3", 1.5, 5.0), marks=NN),
     ],
     ids=str,
 )
@@ -67,6 +68,23 @@ def test_a_long_outage_is_dead_then_rejoins(
     builds: dict[str, Build], model: str, reset: Reset
 ) -> None:
     _outage_exact(builds[model], reset)
+
+
+# NN: T = 20 (NN transitions are ~0.3 s): the module is back and rejoined before the end
+@pytest.mark.parametrize(
+    ("model", "reset"),
+    [
+        ("nnsin", Reset("2.3", 2.37, 5.0)),  # off between relaying S^7 and showing it
+        ("nnsig", Reset("2.3", 1.5, 5.0)),  # 2.4 fed by the bypass 2.2 -> 2.4 when 2.3 is back
+        ("nnsin", Reset("0.0", 1.5, 5.0)),  # module 1 paces the leg, the lead's WELCOME
+        ("nnsig", Reset("0.1", 1.62, 3.0)),  # the lead's bypass to 0.2
+    ],
+    ids=str,
+)
+def test_an_nn_long_outage_is_dead_then_rejoins(
+    builds: dict[str, Build], model: str, reset: Reset
+) -> None:
+    _outage_exact(builds[model], reset, 20)
 
 
 @pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
