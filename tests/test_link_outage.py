@@ -97,9 +97,18 @@ def test_a_cut_wire_is_a_failure_for_its_two_ends(builds: dict[str, Build], mode
     assert np.array_equal(result.state_array(build.legs, build.modules, T), want)
 
 
-@pytest.mark.xfail(strict=True, reason="NN draft: the module after a cut chain wire never joins")
 @pytest.mark.parametrize("model", ["nnsin", "nnsig"])
-def test_the_nn_draft_goes_on_past_a_cut_wire(builds: dict[str, Build], model: str) -> None:
+def test_the_nn_relay_goes_on_past_a_cut_wire(builds: dict[str, Build], model: str) -> None:
+    """A cut chain wire A-B: every module but B is as with ``--fail B`` (docs/link-redesign.md
+    §2.6 "cut"); B paces on the held R^0 of its upstream."""
     build = builds[model]
-    result = RobotTwin(build, physics=False, cut=[(ModuleId(2, 2), ModuleId(2, 3))]).run(T)
+    cut = ModuleId(2, 3)
+    result = RobotTwin(build, physics=False, cut=[(ModuleId(2, 2), cut)]).run(T)
     assert not result.stalled
+    want = load_controller(build.controller_file).states(T, failed=[cut])
+    bad = [
+        m
+        for m, s in result.states.items()
+        if m != cut and s[: T + 1] != want[:, m.leg, m.module].tolist()
+    ]
+    assert not bad
