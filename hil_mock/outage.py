@@ -139,7 +139,7 @@ def outages(twin: RobotTwin) -> list[Outage]:
                 held = {n: w for n, (w, _) in waits.items() if w < t2}
             else:  # long: it rejoined past what it had shown, or not with the state it showed
                 shown = at < len(before) and before[at] == rec.states[at]
-                held = {} if shown else {n: w - 1 for n, (w, _) in waits.items() if w - 1 < at}
+                held = {} if shown else {n: w - lag for n, (w, _) in waits.items() if w - lag < at}
                 t2 = at
             held = {**went_on, **held}
             out.append(Outage(mid, off_s, booted, held, t2 if held else None, at, reads, went_on))
@@ -214,25 +214,41 @@ def outage_reference(
 def compared_states(
     states: Mapping[ModuleId, list[int]], reference: np.ndarray, outs: Sequence[Outage]
 ) -> dict[ModuleId, list[int]]:
-    """Every module's record as it is compared with ``reference`` (:func:`compared_record`)."""
+    """Every module's record as it is compared with ``reference`` (:func:`compared_record`;
+    a short outage's skipped transitions: :func:`unshown`)."""
     long = {o.module: o for o in outs if o.long}
-    return {
-        m: compared_record(seq, long[m], reference[:, m.leg, m.module].tolist())
-        if m in long
-        else seq
-        for m, seq in states.items()
-    }
+    short = {o.module for o in outs if not o.long}
+    out = {}
+    for m, seq in states.items():
+        ref = reference[:, m.leg, m.module].tolist()
+        out[m] = compared_record(seq, long[m], ref) if m in long else seq
+        if m in short:
+            out[m] = unshown(out[m], ref)
+    return out
+
+
+def unshown(seq: list[int], reference: list[int]) -> list[int]:
+    """A short outage of an NN module: it relays S^(t+1) before it shows it, so a power-off
+    between its downstream's TOOK and its first pulse of S^(t+1) leaves that state taken by its
+    neighbours (nobody went on without it) but never shown; it rejoins at the next. The
+    reference stands in for that transition (``OFF_STATE`` in the record), as for a long one."""
+    return [reference[t] if v == OFF_STATE and t < len(reference) else v for t, v in enumerate(seq)]
 
 
 def compared_record(seq: list[int], outage: Outage, reference: list[int]) -> list[int]:
     """The reset module's own record as it is compared: from T + 1 to the transition before its
     record restarts it showed states no neighbour received, then nothing (limp); there the
-    reference (its held state) stands in for it."""
+    reference (its held state) stands in for it. From T itself when it never showed S^T: an NN
+    module relays S^T before it shows it, so a power-off between its downstream's TOOK and its
+    first pulse of S^T leaves S^T held downstream and nothing shown."""
     if not outage.long or outage.failed_at is None:
         return seq
     stop = len(reference) if outage.rejoined_at is None else outage.rejoined_at
     out = list(seq) + [OFF_STATE] * max(0, stop - len(seq))
-    for t in range(outage.failed_at + 1, min(stop, len(out), len(reference))):
+    first = outage.failed_at + (
+        0 <= outage.failed_at < len(out) and out[outage.failed_at] != OFF_STATE
+    )
+    for t in range(first, min(stop, len(out), len(reference))):
         out[t] = reference[t]
     return out
 
@@ -247,6 +263,7 @@ __all__ = [
     "outage_reference",
     "outages",
     "readers",
+    "unshown",
 ]
 
 
