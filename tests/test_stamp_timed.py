@@ -143,6 +143,11 @@ def test_the_twin_moves_as_the_stamp_timed_simulator(
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 13 open: the CA serve loop's phase drift is state-dependent "
+    "(docs/link-redesign.md §7); offsets fitted on representatives miss a random build",
+)
 def test_schedule_model_follows_a_real_build(tmp_path: Path) -> None:
     """A random controller (not a representative): the fitted model's instants against its
     build's, and the model-timed distance of a shipped controller against the build-timed."""
