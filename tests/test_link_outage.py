@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import BuiltinBuild
 
 from bstool.buildfile import Build
-from bstool.builtin import builtin_controller
-from bstool.compile import compile_controller
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
 from hil_mock.outage import compared_states, cut_reference, outage_reference, outages
@@ -26,13 +25,8 @@ T = 8
 
 
 @pytest.fixture(scope="module")
-def builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Build]:
-    root = tmp_path_factory.mktemp("outage")
-    out: dict[str, Build] = {}
-    for model in ("ca1d", "ca2dsing", "nnsin", "nnsig"):
-        compile_controller(builtin_controller(model), root / model)
-        out[model] = load_build(root / model)
-    return out
+def builds(builtin_build: BuiltinBuild) -> dict[str, Build]:
+    return {m: load_build(builtin_build(m)) for m in ("ca1d", "ca2dsing", "nnsin", "nnsig")}
 
 
 def _outage_exact(build: Build, reset: Reset, transitions: int = T) -> None:
