@@ -253,6 +253,29 @@ def compared_record(seq: list[int], outage: Outage, reference: list[int]) -> lis
     return out
 
 
+def cut_reference(
+    ctrl: Controller, transitions: int, cuts: Sequence[tuple[ModuleId, ModuleId]]
+) -> np.ndarray:
+    """CA: R^0..R^T when each end of a cut wire reads the other end's R^0 for ever (it never
+    heard it: dead from power-up for that end only), every other neighbour as healthy: a
+    per-link view (``ca_sequences(views=)``) of the ends whose rule reads the other."""
+    from bstool.controllers.reference import ca_neighbours
+    from bstool.controllers.sequences import ca_sequences
+
+    n, m = ctrl.legs, ctrl.modules
+    r0 = ctrl.initial_states
+    views = {}
+    for a, b in cuts:
+        for reader, source in (((a.leg, a.module), (b.leg, b.module)),
+                               ((b.leg, b.module), (a.leg, a.module))):  # fmt: skip
+            if source in ca_neighbours(ctrl.model, n, m, *reader):
+                views[reader, source] = int(r0[source])
+    rules = ctrl.rules()
+    seq = ca_sequences(ctrl.model, r0[None], rules[None] if ctrl.model == "ca2ddiff" else rules,
+                       transitions, (), views)  # fmt: skip
+    return seq[0].astype(np.int64)
+
+
 __all__ = [
     "OFF_STATE",
     "Outage",
@@ -265,30 +288,3 @@ __all__ = [
     "readers",
     "unshown",
 ]
-
-
-def cut_reference(
-    ctrl: Controller, transitions: int, cuts: Sequence[tuple[ModuleId, ModuleId]]
-) -> np.ndarray:
-    """CA: R^0..R^T when each end of a cut wire reads the other end's R^0 for ever (it never
-    heard it: dead from power-up for that end only), every other neighbour as healthy."""
-    from bstool.controllers.reference import ca_neighbours, rule_index
-
-    both = [ctrl.rule] if ctrl.rule is not None else [ctrl.control_rule, ctrl.leg_rule]
-    rules = [r for r in both if r is not None]
-    n, m = ctrl.legs, ctrl.modules
-    r0 = ctrl.initial_states.tolist()
-    blind = {(a.leg, a.module, b.leg, b.module) for a, b in cuts}
-    blind |= {(c, d, a, b) for a, b, c, d in blind}
-    frames = [r0]
-    for _ in range(transitions):
-        cur, nxt = frames[-1], [[0] * m for _ in range(n)]
-        for i in range(n):
-            for j in range(m):
-                (li, lj), (ri, rj) = ca_neighbours(ctrl.model, n, m, i, j)
-                left = r0[li][lj] if (i, j, li, lj) in blind else cur[li][lj]
-                right = r0[ri][rj] if (i, j, ri, rj) in blind else cur[ri][rj]
-                rule = rules[0] if (ctrl.model != "ca2ddiff" or j == 0) else rules[1]
-                nxt[i][j] = int(rule[rule_index(left, cur[i][j], right)])
-        frames.append(nxt)
-    return np.array(frames, dtype=np.int64)
