@@ -78,9 +78,23 @@ class LinkSettings:
     power_up_window_ms: int
     states_wait_units: int | None = None  # NN: StatesWait (the packed states after READY)
     pace_ticks: int | None = None  # NN: PaceTicks (silent upstream ticks before pacing)
+    # CA: the silence clock (0.8 ms units): a tick, and the lower bounds each try adds
+    tick_quiet_units: int | None = None  # TickQuiet
+    ask_quiet_units: int | None = None  # AskQuiet: a master's try that heard nothing
+    listen_quiet_units: int | None = None  # ListenQuiet: a listen that heard nothing
+    heard_quiet_units: int | None = None  # HeardQuiet: a try that heard a byte
+    ask_heard_quiet_units: int | None = None  # AskHeardQuiet: a master's try that heard a byte
 
 
-_LINK_OPTIONAL = ("states_wait_units", "pace_ticks")  # NN only: None (null) in a CA build
+_LINK_OPTIONAL = (  # NN only / CA only: None (null) in a build of the other family
+    "states_wait_units",
+    "pace_ticks",
+    "tick_quiet_units",
+    "ask_quiet_units",
+    "listen_quiet_units",
+    "heard_quiet_units",
+    "ask_heard_quiet_units",
+)
 
 
 @dataclass(frozen=True)

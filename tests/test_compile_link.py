@@ -115,7 +115,8 @@ def test_bare_answers_are_two_bits_apart() -> None:
 
 DECLARED = {
     "Baud", "HoldFrames", "ReplyWait", "Listen", "Pace", "PayloadWait", "StatesWait", "DeadTicks",
-    "PaceTicks", "JoinTicks", "JoinMs",
+    "PaceTicks", "JoinTicks", "JoinMs", "TickQuiet", "AskQuiet", "ListenQuiet", "HeardQuiet",
+    "AskHeardQuiet",
 }  # fmt: skip
 """The CONs the manifest accounts for (test_every_program_declares_the_manifest_constants)."""
 
@@ -149,6 +150,13 @@ def test_every_program_declares_the_manifest_constants(tmp_path: Path) -> None:
             else:
                 assert int(con["JoinMs"]) == k.power_up_window_ms
                 assert k.states_wait_units is None and k.pace_ticks is None
+                assert int(con["TickQuiet"]) == k.tick_quiet_units
+                assert int(con["AskQuiet"]) == k.ask_quiet_units
+                assert int(con["ListenQuiet"]) == k.listen_quiet_units
+                assert int(con["HeardQuiet"]) == k.heard_quiet_units
+                assert int(con["AskHeardQuiet"]) == k.ask_heard_quiet_units
+                dead_ms = (m.dead_ticks - 1) * k.tick_quiet_units * link.CA_QUIET_UNIT_MS
+                assert dead_ms >= k.dead_limit_ms
             assert set(con) <= DECLARED, set(con) - DECLARED  # a new CON: into the manifest
 
 
@@ -207,9 +215,19 @@ def test_link_vector_files_are_up_to_date() -> None:
 def test_dead_limit_is_at_least_a_second_and_a_half() -> None:
     """DeadTicks (protocol/link.md §5): silent ticks, each a lower bound of tries, >= 1.5 s."""
     ctrl = load_controller(builtin_controller("ca2dsing"))
+    tick_ms = link.CA_TICK_QUIET * link.CA_QUIET_UNIT_MS
     for plan in build_plans(ctrl, DEFAULT, 0.475, "0" * 8):
-        wires = len(plan.links)
-        tick_ms = link.CA_TICK_ROUNDS * link.CA_TRY_MIN_MS * wires
         assert (plan.dead_ticks - 1) * tick_ms >= link.CA.dead_limit_ms
+        assert plan.dead_ticks <= 15  # ti is a Nib
+    # each try adds at most its shortest length on a resonator 5 % fast (a sum of lower bounds)
+    byte = 10 / 4.8  # ms at 4800 baud
+    ask, listen, heard, ask_heard = link.ca_quiet_units()
+    unit = link.CA_QUIET_UNIT_MS
+    assert ask * unit <= 0.95 * (2 * byte + link.CA.pace_ms + 0.4 * link.CA.reply_wait)
+    assert listen * unit <= 0.95 * 0.4 * link.CA.listen
+    assert 0 < heard * unit <= 0.95 * byte
+    assert heard < ask_heard and ask_heard * unit <= 0.95 * (3 * byte + link.CA.pace_ms)
+    # the largest add keeps the Byte clock below 256 before it is wrapped by a tick
+    assert link.CA_TICK_QUIET - 1 + max(ask, listen, heard, ask_heard) < 256
     assert link.nn_dead_ticks() * link.NN_TICK_MS >= 1500
     assert link.nn_join_ticks() * link.NN_TICK_MS >= 3000 + link.nn_dead_ticks()

@@ -44,13 +44,6 @@ def _outage_exact(build: Build, reset: Reset, transitions: int = T) -> None:
     assert not bad, f"{outs[0].reference_text()}: {bad}"
 
 
-DISAGREE = pytest.mark.xfail(
-    strict=True,
-    reason="open (docs/link-redesign.md §2.4): neighbours that held different transitions; with "
-    "the servo pulse before the tick count these instants fall in the 16/270 case not yet exact",
-)
-
-
 @pytest.mark.parametrize(
     ("model", "reset"),
     [
@@ -59,9 +52,11 @@ DISAGREE = pytest.mark.xfail(
         ("ca2dsing", Reset("0.0", 1.62, 3.0)),
         ("ca2dsing", Reset("2.3", 1.62, 5.0)),
         ("ca1d", Reset("2.3", 1.62, 3.0)),  # rejoined with 2.4 four transitions ahead
-        pytest.param("ca1d", Reset("2.3", 1.5, 5.0), marks=DISAGREE),  # 2.4 three ahead of 2.2
-        pytest.param("ca2dsing", Reset("0.0", 1.5, 3.0), marks=DISAGREE),  # 4.0 S^1, others S^2
-        ("ca1d", Reset("0.0", 1.67, 3.0)),  # a random instant; 0.5 waited, 0.1 went on
+        # neighbours that held different transitions (docs/link-redesign.md §2.4): exact since
+        # the silence clock (protocol/link.md §4.5) moved the instants each neighbour gives up
+        ("ca1d", Reset("2.3", 1.5, 5.0)),  # 2.4 three ahead of 2.2
+        ("ca2dsing", Reset("0.0", 1.5, 3.0)),
+        ("ca1d", Reset("0.0", 1.67, 4.0)),  # a random instant (3 s is now under the dead-limit)
     ],
     ids=str,
 )

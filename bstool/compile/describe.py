@@ -86,7 +86,22 @@ def _link_settings(nn: bool, hold_frames: int) -> bf.LinkSettings:
         power_up_window_ms=k.power_up_window_ms,
         states_wait_units=k.states_wait,
         pace_ticks=k.pace_ticks,
+        **_quiet(nn),
     )
+
+
+def _quiet(nn: bool) -> dict[str, int | None]:
+    """CA: the silence clock's constants (bstool.wire.link.ca_quiet_units); NN: none."""
+    if nn:
+        return {}
+    ask, listen, heard, ask_heard = link.ca_quiet_units()
+    return {
+        "tick_quiet_units": link.CA_TICK_QUIET,
+        "ask_quiet_units": ask,
+        "listen_quiet_units": listen,
+        "heard_quiet_units": heard,
+        "ask_heard_quiet_units": ask_heard,
+    }
 
 
 def manifest(

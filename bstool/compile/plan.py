@@ -218,7 +218,7 @@ def _plan(
         )
     plan.rx_size = rx_size
     plan.serve = wire.serve_constants(family == "nn")
-    plan.dead_ticks = wire.nn_dead_ticks() if family == "nn" else wire.ca_dead_ticks(len(mine))
+    plan.dead_ticks = wire.nn_dead_ticks() if family == "nn" else wire.ca_dead_ticks()
     return plan
 
 

@@ -82,22 +82,37 @@ NN = ServeConstants(
 )
 NN_TICK_MS = 100
 """NN: one silent tick is 100 ms of a sum of lower bounds of the tries."""
-CA_TICK_ROUNDS = 16
-"""CA: one silent tick is 16 serve rounds."""
-CA_TRY_MIN_MS = 7.2
-"""CA: the shortest try (a master's reply wait or a slave's listen, both at least 7.2 ms incl.
-the frame): a tick of 16 rounds on w wires lasts at least 16 · 7.2 ms · w."""
+CA_QUIET_UNIT_MS = 0.8
+"""CA: the unit of the silence clock ``quiet`` (a Byte): every try adds a lower bound of its
+own length, so a tick lasts at least its length in real time whatever the stamp's speed and
+whichever tries a round skips (keep-alives)."""
+CA_TICK_QUIET = 144
+"""CA: one silent tick is 144 quiet units (>= 115.2 ms): DeadTicks = 15 fits a Nib."""
+CLOCK_MARGIN = 0.95
+"""CA lower bounds are clock times (bytes, pace, SERIN timeouts) x 0.95: a resonator up to 5 %
+fast still lasts at least that long (the sweep's clock spread is 2 %)."""
+
+
+def ca_quiet_units(k: ServeConstants | None = None) -> tuple[int, int, int, int]:
+    """CA: lower bounds in quiet units of (a master's try that heard nothing: the REQ's two
+    bytes, the pace and the reply wait; a listen that heard nothing; a try that heard a byte;
+    a master's try that heard a byte: the REQ, the pace and that byte)."""
+    k = k or CA
+    unit = CA_QUIET_UNIT_MS / CLOCK_MARGIN
+    master = (2 * byte_ms() + k.pace_ms + k.reply_wait * 0.4) / unit
+    listen = k.listen * 0.4 / unit
+    heard_by_master = (3 * byte_ms() + k.pace_ms) / unit
+    return int(master), int(listen), int(byte_ms() / unit), int(heard_by_master)
 
 
 def serve_constants(nn: bool) -> ServeConstants:
     return NN if nn else CA
 
 
-def ca_dead_ticks(wires: int) -> int:
-    """CA DeadTicks of a module with ``wires`` link wires: >= the dead-limit whatever the timing
-    (one more tick: the first one may have begun just before the silence)."""
-    tick_ms = CA_TICK_ROUNDS * CA_TRY_MIN_MS * max(1, wires)
-    return math.ceil(CA.dead_limit_ms / tick_ms) + 1
+def ca_dead_ticks() -> int:
+    """CA DeadTicks: >= the dead-limit whatever the timing (one more tick: the first one may
+    have begun just before the silence)."""
+    return math.ceil(CA.dead_limit_ms / (CA_TICK_QUIET * CA_QUIET_UNIT_MS)) + 1
 
 
 def nn_dead_ticks() -> int:
