@@ -84,6 +84,12 @@ class LinkSettings:
     listen_quiet_units: int | None = None  # ListenQuiet: a listen that heard nothing
     heard_quiet_units: int | None = None  # HeardQuiet: a try that heard a byte
     ask_heard_quiet_units: int | None = None  # AskHeardQuiet: a master's try that heard a byte
+    # CA: the hold clock (0.4 ms units: estimates of the timing model) and the tries in a row
+    frame_units: int | None = None  # FrameTime: a hold frame; the hold is hold_frames of them
+    master_try_units: int | None = None  # MasterTry: a master's try besides its pulse
+    listen_try_units: int | None = None  # ListenTry: a listen besides its pulse
+    ask_tries: int | None = None  # AskTries: REQs in a row while the slave's state is missing
+    lack_tries: int | None = None  # LackTries: listens in a row while the master's is missing
 
 
 _LINK_OPTIONAL = (  # NN only / CA only: None (null) in a build of the other family
@@ -94,6 +100,11 @@ _LINK_OPTIONAL = (  # NN only / CA only: None (null) in a build of the other fam
     "listen_quiet_units",
     "heard_quiet_units",
     "ask_heard_quiet_units",
+    "frame_units",
+    "master_try_units",
+    "listen_try_units",
+    "ask_tries",
+    "lack_tries",
 )
 
 

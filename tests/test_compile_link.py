@@ -116,7 +116,7 @@ def test_bare_answers_are_two_bits_apart() -> None:
 DECLARED = {
     "Baud", "HoldFrames", "ReplyWait", "Listen", "Pace", "PayloadWait", "StatesWait", "DeadTicks",
     "PaceTicks", "JoinTicks", "JoinMs", "TickQuiet", "AskQuiet", "ListenQuiet", "HeardQuiet",
-    "AskHeardQuiet",
+    "AskHeardQuiet", "FrameTime", "MasterTry", "ListenTry", "AskTries", "LackTries",
 }  # fmt: skip
 """The CONs the manifest accounts for (test_every_program_declares_the_manifest_constants)."""
 
@@ -155,6 +155,11 @@ def test_every_program_declares_the_manifest_constants(tmp_path: Path) -> None:
                 assert int(con["ListenQuiet"]) == k.listen_quiet_units
                 assert int(con["HeardQuiet"]) == k.heard_quiet_units
                 assert int(con["AskHeardQuiet"]) == k.ask_heard_quiet_units
+                assert int(con["FrameTime"]) == k.frame_units
+                assert int(con["MasterTry"]) == k.master_try_units
+                assert int(con["ListenTry"]) == k.listen_try_units
+                assert int(con["AskTries"]) == k.ask_tries
+                assert int(con["LackTries"]) == k.lack_tries
                 dead_ms = (m.dead_ticks - 1) * k.tick_quiet_units * link.CA_QUIET_UNIT_MS
                 assert dead_ms >= k.dead_limit_ms
             assert set(con) <= DECLARED, set(con) - DECLARED  # a new CON: into the manifest

@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 
 from bstool import buildfile as bf
+from bstool.compile.plan import ModulePlan
 from bstool.compile.results import ModuleResult, SlotResult
 from bstool.compile.topology import SERVO_PIN, links, pin_role
 from bstool.controllers import NN_MODELS, Controller
@@ -69,7 +70,7 @@ def _module(ctrl: Controller, res: ModuleResult) -> bf.Module:
     )
 
 
-def _link_settings(nn: bool, hold_frames: int) -> bf.LinkSettings:
+def _link_settings(nn: bool, hold_frames: int, plan: ModulePlan | None = None) -> bf.LinkSettings:
     k = link.serve_constants(nn)
     return bf.LinkSettings(
         protocol="protocol/link.md",
@@ -87,7 +88,21 @@ def _link_settings(nn: bool, hold_frames: int) -> bf.LinkSettings:
         states_wait_units=k.states_wait,
         pace_ticks=k.pace_ticks,
         **_quiet(nn),
+        **_hold_clock(plan),
     )
+
+
+def _hold_clock(plan: ModulePlan | None) -> dict[str, int | None]:
+    """CA: the hold clock's estimates (the same in every module's plan) and the tries in a row."""
+    if plan is None or plan.family != "ca":
+        return {}
+    return {
+        "frame_units": plan.frame_units,
+        "master_try_units": plan.master_try_units,
+        "listen_try_units": plan.listen_try_units,
+        "ask_tries": plan.serve.ask_tries,
+        "lack_tries": plan.serve.lack_tries,
+    }
 
 
 def _quiet(nn: bool) -> dict[str, int | None]:
@@ -137,7 +152,7 @@ def manifest(
         robot=bf.RobotSize(ctrl.legs, ctrl.modules, ctrl.k),
         period_s=period,
         tokenized=tokenized,
-        link=_link_settings(ctrl.model in NN_MODELS, hold),
+        link=_link_settings(ctrl.model in NN_MODELS, hold, results[0].plan if results else None),
         announcement=announce.DESCRIPTION,
         modules=[_module(ctrl, res) for res in results],
         links=wires,

@@ -74,6 +74,11 @@ class ModulePlan:
     serve: wire.ServeConstants = wire.CA  # the serve loop's constants (bstool.wire.link)
     dead_ticks: int = 0  # DeadTicks: silent ticks before a wire is dead (>= the dead-limit)
     hold_frames: int = wire.CA.hold_frames  # HoldFrames: from the period (hold_for_period)
+    # CA: the hold clock (protocol/link.md §4.2): each try adds its estimated length besides its
+    # pulse (SERIN units); a hold frame is FrameTime units, the same on every module
+    master_try_units: int = 0
+    listen_try_units: int = 0
+    frame_units: int = 0
     timing: timing.CompileTiming = timing.DEFAULT  # the estimates' timing model
 
     @property
@@ -125,6 +130,10 @@ def build_plans(
     every = [
         _plan(ctrl, mid, all_links, r0, calibration, hash8, model) for mid in all_modules(n, m)
     ]
+    if every and every[0].family == "ca":
+        frame = round(_ca_frame_ms(every) / every[0].timing.serin_unit_ms)
+        for p in every:
+            p.frame_units = frame
     set_hold_frames(every, hold_for_period(every, period_s * 1000))
     return [p for p in every if wanted is None or p.mid in wanted]
 
@@ -219,6 +228,10 @@ def _plan(
     plan.rx_size = rx_size
     plan.serve = wire.serve_constants(family == "nn")
     plan.dead_ticks = wire.nn_dead_ticks() if family == "nn" else wire.ca_dead_ticks()
+    if family == "ca":
+        t, k, unit = plan.timing, plan.serve, plan.timing.serin_unit_ms
+        plan.master_try_units = round(t.ca_ask_ms(k) / unit)
+        plan.listen_try_units = round(t.listen_ms(0.0, k, jitter=MEAN_JITTER) / unit)
     return plan
 
 
@@ -262,10 +275,16 @@ MEAN_JITTER = 3.5
 
 
 def _ca_frame_ms(plans: list[ModulePlan]) -> float:
-    """CA: the period per hold frame: the slowest module's longest usual try, and the waits
-    for the neighbours (timing.CA_COUPLING)."""
-    longest = max(max(_tries(p, jitter=MEAN_JITTER), default=0.0) for p in plans)
-    return longest * timing.CA_COUPLING
+    """CA: one hold frame: a listen try with the robot's middle pulse (the hold clock counts
+    every try's estimated length, so a frame is a length of time, not a try)."""
+    return plans[0].timing.listen_ms(_pulse_ms(plans[0]), plans[0].serve, jitter=MEAN_JITTER)
+
+
+def _ca_exchange_ms(plans: list[ModulePlan]) -> float:
+    """CA: a transition besides its hold (timing.CA_EXCHANGE_ROUNDS): the hold starts when the
+    latest neighbour state is stored."""
+    busiest = max(sum(_tries(p, jitter=MEAN_JITTER)) for p in plans)
+    return timing.CA_EXCHANGE_ROUNDS * busiest
 
 
 def _nn_meeting_ms(plans: list[ModulePlan], p: ModulePlan, ll: LocalLink) -> float:
@@ -316,13 +335,12 @@ def _nn_lead(plans: list[ModulePlan]) -> ModulePlan | None:
 
 
 def min_hold_frames(plans: list[ModulePlan]) -> int:
-    """The protocol's floor of HoldFrames: NN the lead's floor (bstool.wire.link NN); CA the
-    tries of keepalive_rounds rounds of the module with most wires (a master that has its
-    reply polls every keepalive_rounds-th round: holding less does not make a robot faster)."""
+    """The protocol's floor of HoldFrames: NN the lead's floor (bstool.wire.link NN); CA
+    keepalive_rounds frames (a policy: the hold starts at the latest neighbour state, after
+    every exchange of the transition, so no handshake needs it; a servo needs time to move)."""
     if plans[0].family == "nn":
         return wire.NN.hold_frames
-    wires = max(len(p.links) for p in plans)
-    return wire.CA.keepalive_rounds * max(1, wires)
+    return wire.CA.keepalive_rounds
 
 
 def hold_for_period(plans: list[ModulePlan], period_ms_wanted: float) -> int:
@@ -330,7 +348,7 @@ def hold_for_period(plans: list[ModulePlan], period_ms_wanted: float) -> int:
     model's speed (never below :func:`min_hold_frames`)."""
     floor = min_hold_frames(plans)
     if plans[0].family == "ca":
-        per, fixed = _ca_frame_ms(plans), plans[0].timing.transition_end_ms()
+        per, fixed = _ca_frame_ms(plans) * timing.CA_FRAME_RATIO, _ca_exchange_ms(plans)
     else:
         lead = _nn_lead(plans)
         if lead is None:
@@ -356,7 +374,7 @@ def period_ms(plans: list[ModulePlan]) -> float:
         return 0.0
     hold = plans[0].hold_frames
     if plans[0].family == "ca":
-        return hold * _ca_frame_ms(plans) + plans[0].timing.transition_end_ms()
+        return hold * _ca_frame_ms(plans) * timing.CA_FRAME_RATIO + _ca_exchange_ms(plans)
     lead = _nn_lead(plans)
     held = 0.0
     if lead is not None:

@@ -36,10 +36,15 @@ TURNAROUND_STATEMENTS = 5
 header, the pulse before the reply."""
 END_STATEMENTS = 12
 """CA: the end of a transition: the tick, the hold and got checks, prev, the rule's lookup."""
-CA_COUPLING = 1.087
-"""CA: the period per hold frame over the slowest module's longest usual try: after its hold a
-module still waits for its neighbours' S^t, and they for theirs; calibrated on the twin at
--T 30 (ca1d 1.11, ca2dsing 1.06, ca2ddiff 1.07 at 0.3-0.8 s, docs/compile.md)."""
+CA_EXCHANGE_ROUNDS = 3.5
+"""CA: a transition besides its hold, in rounds of the busiest module (the sum of its usual
+tries): the hold starts at the latest neighbour state, which comes when the slowest wire around
+has met after both ends moved on. Fitted on the twin (-T 30, periods 0.475 and 0.8 s: ca1d
+about 0.10 s on a 33 ms round, 2-D 0.25 s on 66 ms; docs/compile.md "Period"); it only sets
+HoldFrames for --period and the reported estimates."""
+CA_FRAME_RATIO = 1.25
+"""CA: a hold frame's real length over its estimate (FrameTime): the hold clock leaves out the
+round's bookkeeping and the skipped keep-alives (fitted with CA_EXCHANGE_ROUNDS: 1.2-1.3)."""
 GAP_STATEMENTS = 20
 """The statements between tries that the try counts above leave out (the tick bookkeeping,
 jumps between wires); calibrated on the twin's interpreter (docs/compile.md)."""
@@ -131,6 +136,15 @@ class CompileTiming:
             + frame_ms(packed_bytes(states), k)
             + frame_ms(1, k)
             + self.statements(NN_STORE_STATEMENTS + states + TRY_STATEMENTS)
+        )
+
+    def ca_ask_ms(self, k: ServeConstants) -> float:
+        """CA: a master's try besides its pulse: REQ(t), the reply wait (its jitter at the
+        mean), the statements (an answered try is about as long: the reply's bytes)."""
+        return (
+            frame_ms(2, k)
+            + self.wait_ms(k.reply_wait + k.jitter_units / 2)
+            + self.statements(TRY_STATEMENTS + 3)
         )
 
     def listen_ms(self, pulse_ms: float, k: ServeConstants, *, jitter: float) -> float:

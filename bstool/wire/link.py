@@ -56,6 +56,8 @@ class ServeConstants:
     jitter_units: int = 7  # RANDOM & 7 added to both timeouts
     states_wait: int | None = None  # NN: the packed states after READY, 0.4 ms units per byte
     pace_ticks: int | None = None  # NN: every upstream wire silent this many ticks: pace myself
+    ask_tries: int | None = None  # CA: a master's REQs in a row while the slave's state is missing
+    lack_tries: int | None = None  # CA: a slave's listens in a row while the master's is missing
 
 
 CA = ServeConstants(
@@ -67,6 +69,8 @@ CA = ServeConstants(
     dead_limit_ms=1500,  # the 1 s with margin
     power_up_window_ms=5000,  # the 3 s power-up spread with margin
     keepalive_rounds=4,  # every round doubled a 2-D lead's period; silence must mean "off"
+    ask_tries=3,  # the two ends of a wire meet soon after both show S^t (docs/link-redesign.md §7)
+    lack_tries=5,  # a listen window longer than a master's asks in a row
 )
 NN = ServeConstants(
     hold_frames=4,  # the floor: a build derives HoldFrames from --period
