@@ -82,8 +82,9 @@ def test_compiled_robot_follows_reference(
     mean, _ = result.period_stats()
     if model.startswith("nn") and not mean > nominal * (1 - PERIOD_TOLERANCE):
         pytest.xfail(  # the states and gaps above passed; the estimate is a report
-            f"NN period {mean:.3f} s under the estimate {nominal:.3f} s: plan.estimates still "
-            "models the states in every REQ, not the header-only poll (docs/link-redesign.md §6)"
+            f"NN period {mean:.3f} s under the estimate {nominal:.3f} s: a leg fed by a bypass or "
+            "paced by module 1 runs faster than the lead's hold, and plan.period_ms has no term "
+            "for it (docs/link-redesign.md §6)"
         )
     if dead:  # a dead neighbour's wire is still polled (every 4th round, unanswered tries)
         assert nominal * (1 - PERIOD_TOLERANCE) < mean < 1.35 * nominal, (mean, nominal)
