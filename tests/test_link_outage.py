@@ -26,7 +26,9 @@ T = 8
 
 @pytest.fixture(scope="module")
 def builds(builtin_build: BuiltinBuild) -> dict[str, Build]:
-    return {m: load_build(builtin_build(m)) for m in ("ca1d", "ca2dsing", "nnsin", "nnsig")}
+    return {
+        m: load_build(builtin_build(m)) for m in ("ca1d", "ca2dsing", "ca2ddiff", "nnsin", "nnsig")
+    }
 
 
 def _outage_exact(build: Build, reset: Reset, transitions: int = T) -> None:
@@ -84,10 +86,19 @@ def test_an_nn_long_outage_is_dead_then_rejoins(
     _outage_exact(builds[model], reset, 20)
 
 
-@pytest.mark.parametrize("model", ["ca1d", "ca2dsing"])
-def test_a_cut_wire_is_a_failure_for_its_two_ends(builds: dict[str, Build], model: str) -> None:
+@pytest.mark.parametrize(
+    ("model", "cut"),
+    [
+        ("ca1d", (ModuleId(2, 2), ModuleId(2, 3))),
+        ("ca2dsing", (ModuleId(2, 2), ModuleId(2, 3))),
+        ("ca2ddiff", (ModuleId(0, 0), ModuleId(0, 1))),  # a lead's wire: 4/30 on 2026-12-01
+    ],
+    ids=str,
+)
+def test_a_cut_wire_is_a_failure_for_its_two_ends(
+    builds: dict[str, Build], model: str, cut: tuple[ModuleId, ModuleId]
+) -> None:
     build = builds[model]
-    cut = (ModuleId(2, 2), ModuleId(2, 3))
     result = RobotTwin(build, physics=False, cut=[cut]).run(T)
     assert not result.stalled
     want = cut_reference(load_controller(build.controller_file), T, [cut])
