@@ -226,7 +226,9 @@ def test_dead_limit_is_at_least_a_second_and_a_half() -> None:
         assert plan.dead_ticks <= 15  # ti is a Nib
     # each try adds at most its shortest length on a resonator 5 % fast (a sum of lower bounds)
     byte = 10 / 4.8  # ms at 4800 baud
-    ask, listen, heard, ask_heard = link.ca_quiet_units()
+    q = link.ca_quiet()
+    ask, listen, heard, ask_heard = q.ask, q.listen, q.heard, q.ask_heard
+    assert q.tick == link.CA_TICK_QUIET
     unit = link.CA_QUIET_UNIT_MS
     assert ask * unit <= 0.95 * (2 * byte + link.CA.pace_ms + 0.4 * link.CA.reply_wait)
     assert listen * unit <= 0.95 * 0.4 * link.CA.listen

@@ -105,18 +105,16 @@ def _hold_clock(plan: ModulePlan | None) -> dict[str, int | None]:
     }
 
 
+CA_QUIET_FIELDS = ("tick", "ask", "listen", "heard", "ask_heard")
+"""The silence clock's fields (bstool.wire.link.CaQuiet), each ``link.<field>_quiet_units``."""
+
+
 def _quiet(nn: bool) -> dict[str, int | None]:
-    """CA: the silence clock's constants (bstool.wire.link.ca_quiet_units); NN: none."""
+    """CA: the silence clock's constants (bstool.wire.link.ca_quiet); NN: none."""
     if nn:
         return {}
-    ask, listen, heard, ask_heard = link.ca_quiet_units()
-    return {
-        "tick_quiet_units": link.CA_TICK_QUIET,
-        "ask_quiet_units": ask,
-        "listen_quiet_units": listen,
-        "heard_quiet_units": heard,
-        "ask_heard_quiet_units": ask_heard,
-    }
+    q = link.ca_quiet()
+    return {f"{name}_quiet_units": getattr(q, name) for name in CA_QUIET_FIELDS}
 
 
 def manifest(

@@ -131,11 +131,21 @@ def build_plans(
         _plan(ctrl, mid, all_links, r0, calibration, hash8, model) for mid in all_modules(n, m)
     ]
     if every and every[0].family == "ca":
-        frame = round(_ca_frame_ms(every) / every[0].timing.serin_unit_ms)
-        for p in every:
-            p.frame_units = frame
+        _set_hold_clock(every)
     set_hold_frames(every, hold_for_period(every, period_s * 1000))
     return [p for p in every if wanted is None or p.mid in wanted]
+
+
+def _set_hold_clock(plans: list[ModulePlan]) -> None:
+    """CA: the hold clock's estimates (SERIN units), the same in every module of the robot: a
+    frame, and a master's try and a listen besides their pulses."""
+    t, k = plans[0].timing, plans[0].serve
+    unit = t.serin_unit_ms
+    frame = round(_ca_frame_ms(plans) / unit)
+    ask = round(t.ca_ask_ms(k) / unit)
+    listen = round(t.listen_ms(0.0, k, jitter=MEAN_JITTER) / unit)
+    for p in plans:
+        p.frame_units, p.master_try_units, p.listen_try_units = frame, ask, listen
 
 
 def _plan(
@@ -228,10 +238,6 @@ def _plan(
     plan.rx_size = rx_size
     plan.serve = wire.serve_constants(family == "nn")
     plan.dead_ticks = wire.nn_dead_ticks() if family == "nn" else wire.ca_dead_ticks()
-    if family == "ca":
-        t, k, unit = plan.timing, plan.serve, plan.timing.serin_unit_ms
-        plan.master_try_units = round(t.ca_ask_ms(k) / unit)
-        plan.listen_try_units = round(t.listen_ms(0.0, k, jitter=MEAN_JITTER) / unit)
     return plan
 
 

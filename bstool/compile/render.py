@@ -82,20 +82,8 @@ def _common(plan: ModulePlan) -> dict[str, object]:
         "baud": link.BAUD,
         "baudmode": link.BAUDMODE,
         "k": plan.serve,
-        "q": _ca_quiet(),  # CA: the silence clock (the manifest's link.*_quiet_units)
+        "q": link.ca_quiet(),  # CA: the silence clock (the manifest's link.*_quiet_units)
         "l_per_slot": tables.L_PER_SLOT,
-    }
-
-
-def _ca_quiet() -> dict[str, int]:
-    """CA: the silence clock's constants (bstool.wire.link.ca_quiet_units)."""
-    ask, listen, heard, ask_heard = link.ca_quiet_units()
-    return {
-        "tick": link.CA_TICK_QUIET,
-        "ask": ask,
-        "listen": listen,
-        "heard": heard,
-        "ask_heard": ask_heard,
     }
 
 

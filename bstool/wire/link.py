@@ -97,16 +97,29 @@ CLOCK_MARGIN = 0.95
 fast still lasts at least that long (the sweep's clock spread is 2 %)."""
 
 
-def ca_quiet_units(k: ServeConstants | None = None) -> tuple[int, int, int, int]:
-    """CA: lower bounds in quiet units of (a master's try that heard nothing: the REQ's two
-    bytes, the pace and the reply wait; a listen that heard nothing; a try that heard a byte;
-    a master's try that heard a byte: the REQ, the pace and that byte)."""
+@dataclass(frozen=True)
+class CaQuiet:
+    """CA: the silence clock's constants in quiet units (the programs' TickQuiet, AskQuiet,
+    ListenQuiet, HeardQuiet, AskHeardQuiet; the manifest's ``link.*_quiet_units``)."""
+
+    tick: int  # one silent tick
+    ask: int  # a master's try that heard nothing: the REQ's two bytes, the pace, the reply wait
+    listen: int  # a listen that heard nothing
+    heard: int  # a try that heard a byte
+    ask_heard: int  # a master's try that heard a byte: the REQ, the pace and that byte
+
+
+def ca_quiet(k: ServeConstants | None = None) -> CaQuiet:
+    """CA: the tick and the lower bounds each try adds to the silence clock."""
     k = k or CA
     unit = CA_QUIET_UNIT_MS / CLOCK_MARGIN
-    master = (2 * byte_ms() + k.pace_ms + k.reply_wait * 0.4) / unit
-    listen = k.listen * 0.4 / unit
-    heard_by_master = (3 * byte_ms() + k.pace_ms) / unit
-    return int(master), int(listen), int(byte_ms() / unit), int(heard_by_master)
+    return CaQuiet(
+        tick=CA_TICK_QUIET,
+        ask=int((2 * byte_ms() + k.pace_ms + k.reply_wait * 0.4) / unit),
+        listen=int(k.listen * 0.4 / unit),
+        heard=int(byte_ms() / unit),
+        ask_heard=int((3 * byte_ms() + k.pace_ms) / unit),
+    )
 
 
 def serve_constants(nn: bool) -> ServeConstants:
