@@ -4,7 +4,7 @@
 # build of each best.json runs 30 transitions on the twin with physics; the table printed at the
 # end (and OUT/twin.tsv) gives the stamp-timed fitness, the twin's distance and the plain
 # simulator's. The run with the longest twin distance is the candidate to ship
-# (docs/results.md "The shipped controllers"): copy OUT/M-sS/best.json and history.csv to
+# (docs/results.md "The shipped controllers re-evolved with --stamp-timed"): copy OUT/M-sS/best.json and history.csv to
 # bstool/data/controllers/M.json and M.history.csv, then regenerate the goldens.
 # About 1 hour on 1 core. Usage: bash bench/reevolve_shipped.sh [OUT_DIR] [WORKERS]
 set -euo pipefail
@@ -13,9 +13,10 @@ WORKERS=${2:-1}
 mkdir -p "$OUT"
 budget() {  # the shipped run's pop gens coevol_gens pm
   python - "$1" <<'PY'
-import json, sys
+import sys
+from bstool import fileio
 from bstool.builtin import builtin_controller
-ga = json.load(open(builtin_controller(sys.argv[1])))["ga"]
+ga = fileio.read_json(builtin_controller(sys.argv[1]), "controller file")["ga"]
 print(ga["pop"], ga["gens"], ga["coevol_gens"], ga["pm"])
 PY
 }
@@ -33,16 +34,17 @@ for m in nnsin nnsig ca1d ca2dsing ca2ddiff; do
   done
 done
 python - "$OUT" <<'PY'
-import json, sys
+import sys
 from pathlib import Path
+from bstool import fileio
 rows = ["run\tstamp_fitness_cm\ttwin_cm\tstamp_timed_cm\tplain_cm\tstates_equal"]
 for run in sorted(Path(sys.argv[1]).glob("*-s*")):
-    best = json.loads((run / "best.json").read_text())
-    twin = json.loads((run / "twin.json").read_text())
+    best = fileio.read_json(run / "best.json", "controller file")
+    twin = fileio.read_json(run / "twin.json", "twin report")
     rows.append("\t".join([run.name, f"{100 * best['fitness']:.1f}",
                            f"{100 * twin['twin_distance']:.1f}", f"{100 * twin['stamp_distance']:.1f}",
                            f"{100 * twin['sim_distance']:.1f}", str(twin.get("states_equal"))]))
 text = "\n".join(rows) + "\n"
-(Path(sys.argv[1]) / "twin.tsv").write_text(text)
+fileio.write_text(Path(sys.argv[1]) / "twin.tsv", text)
 print(text, end="")
 PY
