@@ -134,8 +134,11 @@ def main() -> None:
     ap.add_argument("--ga-gens", type=int, default=40)
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds, best kept")
     ap.add_argument("--stamp-gens", type=int, default=4, help="GA generations, stamp-timed")
-    ap.add_argument("--stamp-models", default="nnsin,nnsig,ca1d",
-                    help="models of the stamp-timed GA runs (comma-separated)")  # fmt: skip
+    ap.add_argument(
+        "--stamp-models",
+        default="nnsin,nnsig,ca1d",
+        help="models of the stamp-timed GA runs (comma-separated; '' = none)",
+    )
     args = ap.parse_args()
 
     problem = Problem("nnsin", transitions=args.transitions)
@@ -180,7 +183,7 @@ def main() -> None:
             f"   ratio {timed / plain:.3f}"
         )
 
-    for model in args.stamp_models.split(","):
+    for model in filter(None, args.stamp_models.split(",")):  # "" = no GA runs
         params = GAParams(pop=args.pop, gens=args.stamp_gens, transitions=args.transitions, seed=2)
         model_schedules = schedule_model(model)
         timed_rate = plain_rate = 0.0

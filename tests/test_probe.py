@@ -372,3 +372,9 @@ def test_stamp_timed_simulator_takes_the_file(
     assert json.loads(slow.out) != json.loads(plain.out)
     run = cli("simulate", ctrl, "--timing", str(_ratio_file(tmp_path, 1.8)))
     assert run.code == 2 and "--timing needs --build" in run.err
+    # the schedule model (--stamp-timed) is fitted on stamps timed by the file as well
+    model = cli("simulate", ctrl, "--stamp-timed", "-T", "4", "--json", "-q")
+    model_slow = cli("simulate", ctrl, "--stamp-timed", "-T", "4", "--json", "-q",
+                     "--timing", str(_ratio_file(tmp_path, 1.8)))  # fmt: skip
+    assert model.code == 0 and model_slow.code == 0, model_slow.err
+    assert json.loads(model_slow.out)["path"] != json.loads(model.out)["path"]

@@ -68,9 +68,47 @@ def test_builtin_evolved_controllers_replay_their_fitness(
 ) -> None:
     from bstool.builtin import builtin_controller
 
-    code, out, _ = run_cli(["simulate", "--model", model, "--json"], capsys)
-    fitness = json.loads(builtin_controller(model).read_text())["fitness"]
-    assert code == 0 and json.loads(out)["distance"] == fitness
+    """The shipped controllers were evolved stamp-timed: `--stamp-timed` plays the same
+    schedule model, so the run's fitness comes back to the bit."""
+    data = json.loads(builtin_controller(model).read_text())
+    assert data["ga"]["stamp_timed"] is True
+    code, out, _ = run_cli(["simulate", "--model", model, "--stamp-timed", "--json", "-q"], capsys)
+    result = json.loads(out)
+    assert code == 0 and result["distance"] == data["fitness"]
+    assert result["stamp_timed"] == "model" and result["transitions"] == data["max_trans"]
+    code, out, _ = run_cli(["simulate", "--model", model, "--json", "-q"], capsys)
+    assert code == 0 and json.loads(out)["distance"] != data["fitness"]  # plain is another robot
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--period", "0.5"], "--period only applies with --stamp-timed"),
+        (["--stamp-timed", "--example"], "--stamp-timed does not combine with --example"),
+        (["--stamp-timed", "--fail", "0.1"], "--stamp-timed does not combine with --fail"),
+        (["--stamp-timed", "--build", "nowhere"], "--stamp-timed does not combine with --build"),
+        (["--timing", "t.json"], "--timing needs --build or --stamp-timed"),
+    ],
+)
+def test_stamp_timed_misuse_is_a_clear_error(
+    args: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run_cli(["simulate", *args], capsys)
+    assert code == 2 and message in err and "Traceback" not in err
+
+
+def test_stamp_timed_period_defaults_to_the_evolved_one() -> None:
+    from dataclasses import replace
+
+    from bstool.builtin import builtin_controller
+    from bstool.commands.simulate_model import evolved_period
+    from bstool.controllers import load_controller
+
+    ctrl = load_controller(builtin_controller("ca1d"))
+    assert evolved_period(ctrl) is None  # shipped: compile's default period
+    ga = dict(ctrl.ga or {})
+    assert evolved_period(replace(ctrl, ga={**ga, "period": 0.5})) == 0.5
+    assert evolved_period(replace(ctrl, ga={**ga, "period": 0.5, "stamp_timed": False})) is None
 
 
 def test_plot_is_a_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -70,10 +70,24 @@ class Source:
     " timing model, no physics there), with the twin's power-up and join.",
 )
 @click.option(
+    "--stamp-timed",
+    is_flag=True,
+    help="Stamp-timed on the schedule model `bstool evolve --stamp-timed` scores with (no"
+    " build needed): replays such a run's fitness.",
+)
+@click.option(
+    "--period",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    help="With --stamp-timed: the period of the builds modelled (default: the one the"
+    " controller was evolved at, else compile's).",
+)
+@click.option(
     "--timing",
     "timing_file",
     type=click.Path(dir_okay=False),
-    help="With --build: a bstool.timing/1 file (bstool probe), the stamps' measured timing.",
+    help="With --build or --stamp-timed: a bstool.timing/1 file (bstool probe), the stamps'"
+    " measured timing.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (metres).")
 @click.option(
@@ -117,6 +131,8 @@ def command(
     example: bool,
     quiet: bool,
     timing_file: str | None = None,
+    stamp_timed: bool = False,
+    period: float | None = None,
 ) -> None:
     """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
     print the disc's displacement and distance (paper eq. 6). Without either, run a shipped
@@ -124,10 +140,15 @@ def command(
     for what, path in (("plot", plot), ("video", video)):
         if path:
             outputs.check_file(path, what)  # before any simulation
-    if timing_file is not None and build_dir is None:
+    if timing_file is not None and build_dir is None and not stamp_timed:
         raise InputError(
-            "--timing needs --build", hint="the timing file times a build's stamps: add --build"
+            "--timing needs --build or --stamp-timed",
+            hint="the timing file times the stamps: add --build BUILD or --stamp-timed",
         )
+    if period is not None and not stamp_timed:
+        raise InputError("--period only applies with --stamp-timed", hint="add --stamp-timed")
+    if stamp_timed:
+        _check_stamp_timed(build_dir, states_file, video, view, transition_time, example, failed)
     if build_dir is not None:
         bad = [flag for flag, given in (("--states", states_file), ("--video", video),
                ("--view", view), ("--transition-time", transition_time is not None),
@@ -160,6 +181,14 @@ def command(
             build, source.states, source.failed, quiet=quiet, timing_file=timing_file
         )
         timing = stamp["timing"]
+    elif stamp_timed:
+        from bstool.commands.simulate_model import run_model
+        from bstool.controllers import load_controller
+
+        result, stamp = run_model(
+            load_controller(source.label), source.states, period=period, timing_file=timing_file
+        )
+        timing = stamp["timing"]
     else:
         from bstool.sim.simulator import Simulator
 
@@ -180,7 +209,7 @@ def command(
     out.update(
         {
             "transitions": result.transitions,
-            "transition_time": None if build_dir else sim.transition_time,
+            "transition_time": None if build_dir or stamp_timed else sim.transition_time,
             **stamp,
             "source": source.label,
             "failed": [str(m) for m in source.failed],
@@ -208,6 +237,27 @@ def command(
         from bstool.sim.view import view_run
 
         view_run(sim, source.states)
+
+
+def _check_stamp_timed(
+    build_dir: str | None,
+    states_file: str | None,
+    video: str | None,
+    view: bool,
+    transition_time: float | None,
+    example: bool,
+    failed: tuple[str, ...],
+) -> None:
+    """--stamp-timed plays a controller on its model's schedule: what it cannot combine with."""
+    bad = [flag for flag, given in (("--build", build_dir), ("--states", states_file),
+           ("--video", video), ("--view", view), ("--transition-time", transition_time is not None),
+           ("--example", example), ("--fail", failed)) if given]  # fmt: skip
+    if bad:
+        raise InputError(
+            f"--stamp-timed does not combine with {', '.join(bad)}",
+            hint="--stamp-timed needs a controller (or --model) and models a healthy robot;"
+            " for a build's own timing, or failed modules, use --build BUILD",
+        )
 
 
 def _load_source(
