@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from conftest import run_cli
 
+from bstool.builtin import MODELS
 from bstool.moduleid import ModuleId
 from bstool.sim import Simulator, hold_failed
 
@@ -62,22 +63,88 @@ def test_builtin_example_text_output(capsys: pytest.CaptureFixture[str]) -> None
     assert "built-in example" in out and "distance:" in out and "displacement:" in out
 
 
-@pytest.mark.parametrize("model", ["nnsin", "ca2ddiff"])
+@pytest.mark.parametrize("model", MODELS)
 def test_builtin_evolved_controllers_replay_their_fitness(
     model: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from bstool.builtin import builtin_controller
-
     """The shipped controllers were evolved stamp-timed: `--stamp-timed` plays the same
     schedule model, so the run's fitness comes back to the bit."""
+    from bstool.builtin import builtin_controller
+
     data = json.loads(builtin_controller(model).read_text())
     assert data["ga"]["stamp_timed"] is True
     code, out, _ = run_cli(["simulate", "--model", model, "--stamp-timed", "--json", "-q"], capsys)
     result = json.loads(out)
     assert code == 0 and result["distance"] == data["fitness"]
-    assert result["stamp_timed"] == "model" and result["transitions"] == data["max_trans"]
+    assert result["stamp_timed"] is True and result["schedule"] == "model"
+    assert result["transitions"] == data["max_trans"] and result["timing_file"] is None
     code, out, _ = run_cli(["simulate", "--model", model, "--json", "-q"], capsys)
     assert code == 0 and json.loads(out)["distance"] != data["fitness"]  # plain is another robot
+
+
+def test_stamp_timed_period_comes_from_the_run_unless_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from bstool.builtin import builtin_controller
+    from bstool.compile.build import default_period
+
+    data = json.loads(builtin_controller("ca1d").read_text())
+    data["ga"]["period"] = 0.5
+    ctrl = tmp_path / "c.json"
+    ctrl.write_text(json.dumps(data))
+    runs = {}
+    for extra in ([], ["--period", "0.45"]):
+        code, out, err = run_cli(["simulate", str(ctrl), "--stamp-timed", "-T", "3", "--json",
+                                  "-q", *extra], capsys)  # fmt: skip
+        assert code == 0, err
+        runs[tuple(extra)] = json.loads(out)
+    assert runs[()]["period"] == 0.5 and runs[("--period", "0.45")]["period"] == 0.45
+    assert runs[()]["path"] != runs[("--period", "0.45")]["path"]
+    data["ga"]["stamp_timed"] = False  # a plain run's period is not a build's
+    ctrl.write_text(json.dumps(data))
+    code, out, _ = run_cli(["simulate", str(ctrl), "--stamp-timed", "-T", "1", "--json", "-q"],
+                           capsys)  # fmt: skip
+    assert code == 0 and json.loads(out)["period"] == default_period(5, 6)
+
+
+def test_stamp_timed_needs_the_runs_timing_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run evolved with --timing F replays with F; a missing or changed F is a clear error."""
+    from dataclasses import replace
+
+    from bstool import timingfile
+    from bstool.builtin import builtin_controller
+    from bstool.evolve.options import timing_record
+
+    timing = tmp_path / "t.json"
+    timingfile.dump(timingfile.DEFAULT, timing)
+    data = json.loads(builtin_controller("ca1d").read_text())
+    data["ga"]["timing"] = timing_record(timing)
+    ctrl = tmp_path / "c.json"
+    ctrl.write_text(json.dumps(data))
+    code, out, err = run_cli(["simulate", str(ctrl), "--stamp-timed", "-T", "1", "--json", "-q"],
+                             capsys)  # fmt: skip
+    assert code == 0 and json.loads(out)["timing_file"] == str(timing), err
+    timingfile.dump(replace(timingfile.DEFAULT, source="another stamp"), timing)  # same name
+    code, _, err = run_cli(["simulate", str(ctrl), "--stamp-timed", "-T", "1", "-q"], capsys)
+    assert code == 2 and "has changed since" in err and "--timing F" in err
+    timing.unlink()
+    code, _, err = run_cli(["simulate", str(ctrl), "--stamp-timed", "-T", "1", "-q"], capsys)
+    assert code == 2 and "which is not there" in err and "Traceback" not in err
+
+
+def test_stamp_timed_refuses_a_states_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from bstool.builtin import builtin_controller
+    from bstool.controllers import load_controller
+
+    states = load_controller(builtin_controller("ca1d")).states(2)
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(np.asarray(states).tolist()))
+    code, _, err = run_cli(["simulate", str(path), "--stamp-timed", "-q"], capsys)
+    assert code == 2 and "needs a controller file" in err and "Traceback" not in err
 
 
 @pytest.mark.parametrize(

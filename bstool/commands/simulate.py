@@ -31,6 +31,7 @@ class Source:
     states: Any  # np.ndarray (T+1, n, m), validated
     spec: RobotSpec
     failed: list[ModuleId]
+    controller: Any = None  # the Controller the states come from (None: a states file)
 
 
 @click.command("simulate")
@@ -130,9 +131,9 @@ def command(
     model: str,
     example: bool,
     quiet: bool,
-    timing_file: str | None = None,
-    stamp_timed: bool = False,
-    period: float | None = None,
+    timing_file: str | None,
+    stamp_timed: bool,
+    period: float | None,
 ) -> None:
     """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
     print the disc's displacement and distance (paper eq. 6). Without either, run a shipped
@@ -183,10 +184,14 @@ def command(
         timing = stamp["timing"]
     elif stamp_timed:
         from bstool.commands.simulate_model import run_model
-        from bstool.controllers import load_controller
 
+        if source.controller is None:
+            raise InputError(
+                f"--stamp-timed needs a controller file; {source.label} is a states file",
+                hint="the schedule model is per controller model: give the controller",
+            )
         result, stamp = run_model(
-            load_controller(source.label), source.states, period=period, timing_file=timing_file
+            source.controller, source.states, source.label, period=period, timing_file=timing_file
         )
         timing = stamp["timing"]
     else:
@@ -229,6 +234,8 @@ def command(
         )
         click.echo(f"displacement: dx = {dx:+.4f} m, dy = {dy:+.4f} m")
         click.echo(f"distance:     {result.distance:.4f} m ({result.distance * 100:.2f} cm)")
+        if "note" in stamp:
+            click.echo(f"note:         {stamp['note']}")
         for name, path in (("plot", plot), ("video", video)):
             if path:
                 click.echo(f"{name}:{' ' * (13 - len(name))}{path}")
@@ -249,9 +256,10 @@ def _check_stamp_timed(
     failed: tuple[str, ...],
 ) -> None:
     """--stamp-timed plays a controller on its model's schedule: what it cannot combine with."""
-    bad = [flag for flag, given in (("--build", build_dir), ("--states", states_file),
-           ("--video", video), ("--view", view), ("--transition-time", transition_time is not None),
-           ("--example", example), ("--fail", failed)) if given]  # fmt: skip
+    bad = [flag for flag, given in (("--build", build_dir is not None),
+           ("--states", states_file is not None), ("--video", video is not None), ("--view", view),
+           ("--transition-time", transition_time is not None), ("--example", example),
+           ("--fail", bool(failed))) if given]  # fmt: skip
     if bad:
         raise InputError(
             f"--stamp-timed does not combine with {', '.join(bad)}",
@@ -332,7 +340,7 @@ def _from_controller(
     if transitions is None:
         transitions = ctrl.max_trans if ctrl.max_trans is not None else DEFAULT_TRANSITIONS
     states = ctrl.states(transitions, [str(m) for m in mids])
-    return Source(path, validate_states(states, spec, where=path), spec, mids)
+    return Source(path, validate_states(states, spec, where=path), spec, mids, ctrl)
 
 
 def _render(sim: Any, states: np.ndarray, path: str, quiet: bool) -> Any:

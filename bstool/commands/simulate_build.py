@@ -66,6 +66,7 @@ def run_build(
         else f"the stamps of {Path(build.root).name}",
         "build": str(build.root),
         "stamp_timed": True,
+        "schedule": "build",
         "first_transition_s": float(schedule.samples[0]),
         "period_mean": float(period.mean()) if len(period) else None,
         "states_equal": bool(np.array_equal(seen, states)),

@@ -2,13 +2,15 @@
 
 ``bstool evolve --stamp-timed`` scores each candidate on the schedule a build of it would
 follow, derived from the model (``hil_mock.schedule_model``) rather than compiled; this plays
-the same schedule for one controller, so a stamp-timed run's fitness is replayed to the bit.
+the same schedule for one controller, so a stamp-timed run's fitness is replayed to the bit
+(same period, same timing file, a plain-distance fitness).
 Kept apart from :mod:`bstool.commands.simulate` so that a plain ``bstool simulate`` never
 imports the twin.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -18,24 +20,56 @@ from bstool.errors import InputError
 from bstool.sim.simulator import SimResult
 
 
+def _evolved(ctrl: Controller) -> dict[str, Any]:
+    """The stamp-timed settings of the run that evolved ``ctrl`` ({} if it was not one)."""
+    ga = ctrl.ga if isinstance(ctrl.ga, dict) else {}
+    return ga if ga.get("stamp_timed") is True else {}
+
+
 def evolved_period(ctrl: Controller) -> float | None:
     """The period a stamp-timed run evolved ``ctrl`` at (None: compile's default)."""
-    ga = ctrl.ga if isinstance(ctrl.ga, dict) else {}
-    period = ga.get("period") if ga.get("stamp_timed") else None
-    return float(period) if isinstance(period, int | float) and period > 0 else None
+    period = _evolved(ctrl).get("period")
+    if isinstance(period, bool) or not isinstance(period, int | float) or not period > 0:
+        return None
+    return float(period)
+
+
+def evolved_timing(ctrl: Controller, where: str) -> str | None:
+    """The timing file a stamp-timed run evolved ``ctrl`` with, if it recorded one: that file,
+    checked against the sha256 it recorded (None: the run used the estimate)."""
+    from bstool.evolve.options import timing_record
+
+    saved = _evolved(ctrl).get("timing")
+    if not isinstance(saved, dict) or not isinstance(saved.get("file"), str):
+        return None
+    hint = "give the file with --timing F (or another timing model on purpose)"
+    if not Path(saved["file"]).is_file():
+        raise InputError(
+            f"{where} was evolved with the timing file {saved['file']}, which is not there",
+            hint=hint,
+        )
+    if timing_record(saved["file"])["sha256"] != saved.get("sha256"):
+        raise InputError(
+            f"{saved['file']} has changed since {where} was evolved with it (sha256 differs)",
+            hint=hint,
+        )
+    return str(saved["file"])
 
 
 def run_model(
     ctrl: Controller,
     states: np.ndarray,
+    where: str,
     *,
     period: float | None,
     timing_file: str | None = None,
 ) -> tuple[SimResult, dict[str, Any]]:
-    """Play ``states`` (``ctrl``'s) on the schedule model of ``ctrl.model`` at ``period``
-    (None: the period ``ctrl`` was evolved at, else compile's); the result and what to add
-    to the output."""
+    """Play ``states`` (``ctrl``'s, from the file ``where``) on the schedule model of
+    ``ctrl.model``; the result and what to add to the output. ``period`` None: the one
+    ``ctrl`` was evolved at, else compile's; ``timing_file`` None: the one it was evolved
+    with, else the estimate."""
     from bstool import timingfile
+    from bstool.compile.build import default_period
     from bstool.robot import RobotSpec
     from bstool.sim.simulator import Simulator
     from hil_mock.schedule_model import schedule_model
@@ -44,6 +78,8 @@ def run_model(
         raise InputError("--stamp-timed needs at least one transition", hint="give -T 1 or more")
     if period is None:
         period = evolved_period(ctrl)
+    if timing_file is None:
+        timing_file = evolved_timing(ctrl, where)
     timing = None if timing_file is None else timingfile.load(timing_file)
     fitted = schedule_model(
         ctrl.model, period=period, legs=ctrl.legs, modules=ctrl.modules, timing=timing
@@ -51,12 +87,22 @@ def run_model(
     schedule = fitted.schedule(states)
     sim = Simulator(RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k))
     result = sim.run_schedule(schedule)
+    used = default_period(ctrl.legs, ctrl.modules) if period is None else period
     gaps = np.diff(schedule.samples)
-    label = "compile's default period" if period is None else f"period {period:g} s"
-    return result, {
-        "timing": f"the schedule model of {ctrl.model} ({label}, mean period {gaps.mean():.3f} s)",
-        "stamp_timed": "model",
-        "period": period,
+    out: dict[str, Any] = {
+        "timing": f"the schedule model of {ctrl.model} (builds at period {used:g} s, mean "
+        f"period {gaps.mean():.3f} s)",
+        "stamp_timed": True,
+        "schedule": "model",
+        "period": used,
+        "timing_file": timing_file,
         "first_transition_s": float(schedule.samples[0]),
         "period_mean": float(gaps.mean()),
     }
+    ga = ctrl.ga if isinstance(ctrl.ga, dict) else {}
+    if ga.get("robust") or ga.get("coevolve_faults"):
+        out["note"] = (
+            "this run's fitness was not a plain distance (--robust or --coevolve-faults), "
+            "so it is not replayed here"
+        )
+    return result, out
