@@ -10,7 +10,7 @@ import sys
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
@@ -20,6 +20,9 @@ from bstool.builtin import DEFAULT_MODEL, MODELS
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
 from bstool.robot import RobotSpec
+
+if TYPE_CHECKING:
+    from bstool.controllers import Controller
 
 DEFAULT_TRANSITIONS = 30  # the paper's MAX_TRANS
 EXAMPLE = "example_states.json"
@@ -31,7 +34,7 @@ class Source:
     states: Any  # np.ndarray (T+1, n, m), validated
     spec: RobotSpec
     failed: list[ModuleId]
-    controller: Any = None  # the Controller the states come from (None: a states file)
+    controller: Controller | None = None  # the one the states come from (None: a states file)
 
 
 @click.command("simulate")
@@ -148,17 +151,17 @@ def command(
         )
     if period is not None and not stamp_timed:
         raise InputError("--period only applies with --stamp-timed", hint="add --stamp-timed")
+    given = {"--build": build_dir is not None, "--states": states_file is not None,
+             "--video": video is not None, "--view": view,
+             "--transition-time": transition_time is not None, "--example": example,
+             "--fail": bool(failed)}  # fmt: skip
     if stamp_timed:
-        _check_stamp_timed(build_dir, states_file, video, view, transition_time, example, failed)
+        _refuse("--stamp-timed", given, "--stamp-timed needs a controller (or --model) and"
+                " models a healthy robot; for a build's own timing, or failed modules, use"
+                " --build BUILD")  # fmt: skip
     if build_dir is not None:
-        bad = [flag for flag, given in (("--states", states_file), ("--video", video),
-               ("--view", view), ("--transition-time", transition_time is not None),
-               ("--example", example)) if given]  # fmt: skip
-        if bad:
-            raise InputError(
-                f"--build does not combine with {', '.join(bad)}",
-                hint="--build plays the build's own timing; drop the other options",
-            )
+        _refuse("--build", {**given, "--build": False, "--fail": False},
+                "--build plays the build's own timing; drop the other options")  # fmt: skip
     if video:
         from bstool.sim.gl import configure_headless_gl
 
@@ -246,26 +249,12 @@ def command(
         view_run(sim, source.states)
 
 
-def _check_stamp_timed(
-    build_dir: str | None,
-    states_file: str | None,
-    video: str | None,
-    view: bool,
-    transition_time: float | None,
-    example: bool,
-    failed: tuple[str, ...],
-) -> None:
-    """--stamp-timed plays a controller on its model's schedule: what it cannot combine with."""
-    bad = [flag for flag, given in (("--build", build_dir is not None),
-           ("--states", states_file is not None), ("--video", video is not None), ("--view", view),
-           ("--transition-time", transition_time is not None), ("--example", example),
-           ("--fail", bool(failed))) if given]  # fmt: skip
+def _refuse(mode: str, given: dict[str, bool], hint: str) -> None:
+    """``mode`` (--build, --stamp-timed) with any of the options ``given`` set is a usage
+    error naming them."""
+    bad = [flag for flag, on in given.items() if on and flag != mode]
     if bad:
-        raise InputError(
-            f"--stamp-timed does not combine with {', '.join(bad)}",
-            hint="--stamp-timed needs a controller (or --model) and models a healthy robot;"
-            " for a build's own timing, or failed modules, use --build BUILD",
-        )
+        raise InputError(f"{mode} does not combine with {', '.join(bad)}", hint=hint)
 
 
 def _load_source(
