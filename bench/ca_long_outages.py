@@ -1,16 +1,19 @@
 """CA long outages (docs/link-redesign.md §2.4): a reset of a lead (0.0), a middle (2.3) and a
 last module (2.5) for 2, 3 and 5 s at 10 instants 1.0..3.0 s, T = 10, no physics; one JSON line
-per run (exact modules of 30, stalled, S/L/D, the reference used).
+per run (exact modules of 30; stalled: modules other than the reset one that did not make T;
+rejoined: the reset module was back in step by the end; S/L/D; the reference used) and a
+summary line.
 
-    python bench/ca_long_outages.py BUILD_ROOT [ca1d,ca2dsing,ca2ddiff]
+    python bench/ca_long_outages.py BUILD_ROOT [--models ca1d,ca2dsing,ca2ddiff]
 
 BUILD_ROOT/<model> are `bstool compile` outputs.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
-import sys
+import time
 
 import numpy as np
 
@@ -35,19 +38,30 @@ def run(root: str, model: str, module: str, off: float, at: float) -> dict[str, 
     exact = sum(seq[: T + 1] == want[:, m.leg, m.module].tolist() for m, seq in got.items())
     o = outs[0] if outs else None
     kind = "?" if o is None else ("S" if not o.long else ("L" if o.consistent else "D"))
+    others = [m for m in result.stalled if str(m) != module]
     return {"model": model, "module": module, "off": off, "at": at, "exact": int(exact),
-            "stalled": bool(result.stalled), "kind": kind,
-            "ref": o.reference_text() if o else None}  # fmt: skip
+            "stalled": len(others), "rejoined": module not in {str(m) for m in result.stalled},
+            "kind": kind, "ref": o.reference_text() if o else None}  # fmt: skip
 
 
 def main() -> None:
-    root = sys.argv[1]
-    models = sys.argv[2].split(",") if len(sys.argv) > 2 else ["ca1d", "ca2dsing", "ca2ddiff"]
-    for model in models:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("build_root", help="folder with one `bstool compile` output per model")
+    parser.add_argument("--models", default="ca1d,ca2dsing,ca2ddiff", help="comma-separated")
+    args = parser.parse_args()
+    t0, rows = time.perf_counter(), []
+    for model in args.models.split(","):
         for module in MODULES:
             for off in OFF_S:
                 for at in INSTANTS:
-                    print(json.dumps(run(root, model, module, off, at)), flush=True)
+                    rows.append(run(args.build_root, model, module, off, at))
+                    print(json.dumps(rows[-1]), flush=True)
+    exact = sum(r["exact"] == 30 for r in rows)
+    stalled = sum(bool(r["stalled"]) for r in rows)
+    joining = sum(not r["rejoined"] for r in rows)
+    print(f"{exact} of {len(rows)} runs exact; {stalled} with a module other than the reset one "
+          f"stalled; {joining} ended with the reset module still off or joining (compared as "
+          f"dead); {time.perf_counter() - t0:.0f} s")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -49,7 +49,11 @@ def parse_failure_time(
     """Parse ``"2.3@7"``: module 2.3 fails at transition 7 (it shows S^7, then holds it)."""
     where, sep, when = text.partition("@")
     if not sep or not when.strip().isdigit():
-        what = {"--rejoin": "comes back at", "--held-by": "held at"}.get(option, "fails after")
+        what = {
+            "--rejoin": "comes back at",
+            "--held-by": "held at",
+            "--rejoin-with": "comes back with its state of",
+        }.get(option, "fails after")
         raise InputError(
             f"bad {option} {text!r}: expected L.M@T, e.g. 2.3@7 (module 2.3 {what} "
             "transition 7; T is a whole number >= 0)"

@@ -16,6 +16,10 @@ from bstool.moduleid import ModuleId
 from hil_mock.stamp import Stamp
 
 Wires = dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]]
+# A WELCOME's header, $D8 + t. On a CA link no other byte is $D8..$DF: a payload byte is
+# (15 - x) ^ t << 4 + x (t = 0 without XOR, t <= 7), and a low nibble x >= 8 leaves a high
+# nibble <= 7. (NN packs other payloads: there the tap is not used.)
+WELCOME = 0xD8
 
 
 def wires(build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]) -> Wires:
@@ -47,8 +51,14 @@ class Links:
     noise_events: dict[str, int]
     wires: Wires
     stamps: dict[ModuleId, Stamp]
+    # (sender, receiver, start ns) of every WELCOME header sent, hit by noise or not: a CA
+    # sender counts its neighbour alive again once it sent it (hil_mock.outage)
+    welcomes: list[tuple[ModuleId, ModuleId, int]]
 
     def _route(self, mid: ModuleId, pin: int, value: int, start_ns: int, mode: int) -> None:
+        if value & 0xF8 == WELCOME:
+            ends = self.wires.get((mid, pin), ())
+            self.welcomes.extend((mid, peer, start_ns) for peer, _ in ends)
         if self.noise and self.rng.random() < self.noise:
             if self.rng.random() < 0.5:  # the byte is lost (a start bit not seen)
                 self.noise_events["dropped"] += 1

@@ -15,8 +15,12 @@ at once, R^(T2 + 1)), at a T2 past the state its downstream held. The reference 
 ``states(failed_at={c: T}, rejoin={c: T2})`` (docs/controllers.md "Rejoin"); otherwise the
 healthy one. If the T_N differ (a power cut between c's exchanges of one transition): CA, per
 link, T the latest and ``held={c: {N: T_N}}`` for each reader N that went on with an earlier
-one (a neighbour that waited reads the state c rejoins with); NN, T the earliest. docs/twin.md,
-"Which reference a reset is compared with".
+one (a neighbour that waited reads the state c rejoins with); NN, T the earliest. The rejoin
+is per link too (CA): a reader that went on reads its held state up to and including the
+transition in which it sent c its WELCOME (it entered that one holding c dead, so it does not
+wait for c's state there), c's own from the next on: ``held={c: {N: (T_N, T2_N)}}`` with T2_N
+that transition + 1, read from the twin's wires (the WELCOME headers each module sent,
+:attr:`hil_mock.links.Links.welcomes`). docs/twin.md, "Which reference a reset is compared with".
 """
 
 from __future__ import annotations
@@ -48,9 +52,15 @@ class Outage:
     # CA: the neighbours that read c's state (its rule's readers; a wire peer may not be one):
     # each is compared reading the state it held (per link); NN: empty, compared with the earliest
     reads: frozenset[ModuleId] = frozenset()
-    # N -> T_N for the N that left their wait before c booted (a waiting one reads the state c
-    # rejoins with: its REQ is answered with it)
+    # N -> T_N for the N that left their wait before c booted (CA: before they WELCOMEd c; a
+    # waiting one reads the state c rejoins with: its REQ is answered with it)
     went_on: dict[ModuleId, int] = field(default_factory=dict)
+    # CA: N -> T2_N for the N that went on and then WELCOMEd c: the transition N was in when it
+    # sent its first WELCOME after c booted, + 1 (N reads c's state again from there)
+    until: dict[ModuleId, int] = field(default_factory=dict)
+    # CA: T_R < T when c came back with an older state than the S^T it showed, the one its
+    # neighbours held for it of T_R (its join takes the state of a neighbour that went on)
+    rejoin_with: int | None = None
 
     @property
     def long(self) -> bool:
@@ -74,13 +84,23 @@ class Outage:
         return max(self.held.values()) if self.per_link else min(self.held.values())
 
     @property
-    def links(self) -> dict[ModuleId, int]:
-        """CA: reader N -> T_N for the readers that went on with an earlier state than
-        ``failed_at`` (``states(held={c: links})``)."""
+    def links(self) -> dict[ModuleId, tuple[int, int | None]]:
+        """CA: reader N -> (T_N, T2_N) for the readers that went on and read a state of their
+        own: an earlier one than ``failed_at``, or theirs past c's rejoin T2 (T2_N > T2 + 1);
+        T2_N None: until T2 (``states(held={c: links})``)."""
         t = self.failed_at
         if t is None:
             return {}
-        return {n: tn for n, tn in sorted(self.went_on.items()) if n in self.reads and tn < t}
+        out: dict[ModuleId, tuple[int, int | None]] = {}
+        for n, tn in sorted(self.went_on.items()):
+            until = self.until.get(n) if self.rejoin is not None else None
+            if until == self.rejoin:
+                until = None
+            # T_N = T with T2_N = T2 + 1 reads S^T in T2, which c still shows there: no change
+            later = until is not None and self.rejoin is not None and until > self.rejoin + 1
+            if n in self.reads and (tn < t or later):
+                out[n] = (tn, until)
+        return out
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -90,8 +110,10 @@ class Outage:
             "long": self.long,
             "held": {str(m): t for m, t in self.held.items()},
             "failed_at": self.failed_at,
-            "held_by": {str(m): t for m, t in self.links.items()},
+            "held_by": {str(m): t for m, (t, _) in self.links.items()},
+            "held_until": {str(m): u for m, (_, u) in self.links.items() if u is not None},
             "rejoin": self.rejoin,
+            "rejoin_with": self.rejoin_with,
             "reference": self.reference_text(),
         }
 
@@ -99,10 +121,13 @@ class Outage:
         if not self.long:
             return "healthy (waited for)"
         ref = f"--fail-at {self.module.label}@{self.failed_at}"
-        for n, tn in self.links.items():
-            ref += f" --held-by {n.label}={self.module.label}@{tn}"
+        for n, (tn, until) in self.links.items():
+            span = "" if until is None else f"..{until}"
+            ref += f" --held-by {n.label}={self.module.label}@{tn}{span}"
         if self.rejoin is not None:
             ref += f" --rejoin {self.module.label}@{self.rejoin}"
+        if self.rejoin_with is not None:
+            ref += f" --rejoin-with {self.module.label}@{self.rejoin_with}"
         if self.links:
             ref += f" (per link: the others read S^{self.failed_at})"
         elif not self.consistent:
@@ -125,7 +150,10 @@ def outages(twin: RobotTwin) -> list[Outage]:
                 n: w for n in readers(twin, mid) if (w := _wait(twin.records[n].times_ns, off_s))
             }
             back = math.inf if booted is None else booted * NS
-            went_on = {n: w - lag for n, (w, left) in waits.items() if left < back}
+            # CA: N went on when it left its wait before it WELCOMEd c (a dead-limit can fire
+            # after c booted, before c's JOIN reached N); NN, or no WELCOME: before c booted
+            welcomed = {} if twin._nn else _first_welcomes(twin, mid, back)
+            went_on = {n: w - lag for n, (w, left) in waits.items() if left < welcomed.get(n, back)}
             reads = frozenset() if twin._nn else ca_readers(twin, mid)
             if k >= len(rec.rejoined):  # not back (or still joining) at the end of the run
                 out.append(Outage(mid, off_s, booted, went_on, reads=reads, went_on=went_on))
@@ -142,8 +170,42 @@ def outages(twin: RobotTwin) -> list[Outage]:
                 held = {} if shown else {n: w - lag for n, (w, _) in waits.items() if w - lag < at}
                 t2 = at
             held = {**went_on, **held}
-            out.append(Outage(mid, off_s, booted, held, t2 if held else None, at, reads, went_on))
+            until = {n: _transition_at(twin, n, welcomed[n]) + 1 for n in went_on if n in welcomed}
+            older = None if twin._nn or not held else _older(held, before, rec.states, at)
+            out.append(
+                Outage(
+                    mid, off_s, booted, held, t2 if held else None, at, reads, went_on, until, older
+                )
+            )
     return sorted(out, key=lambda o: o.off_s)
+
+
+def _older(
+    held: Mapping[ModuleId, int], before: Sequence[int], states: Sequence[int], at: int
+) -> int | None:
+    """T_R: the latest of the transitions its neighbours held c's state of, earlier than the
+    latest (T), whose state (as c showed it then) c came back with at ``at``; None when it came
+    back with S^T, or with a state none of them held."""
+    t = max(held.values())
+    if at >= len(states) or t >= len(before) or before[t] == states[at]:
+        return None
+    older = [n for n in set(held.values()) if n < t and before[n] == states[at]]
+    return max(older, default=None)
+
+
+def _first_welcomes(twin: RobotTwin, mid: ModuleId, booted_ns: float) -> dict[ModuleId, int]:
+    """N -> when N sent ``mid`` its first WELCOME after ``mid`` booted (ns)."""
+    out: dict[ModuleId, int] = {}
+    for sender, receiver, start in sorted(twin.welcomes, key=lambda w: w[2]):
+        if receiver == mid and start >= booted_ns and sender not in out:
+            out[sender] = start
+    return out
+
+
+def _transition_at(twin: RobotTwin, mid: ModuleId, when_ns: int) -> int:
+    """The transition ``mid`` was in at ``when_ns``: the last state it showed by then."""
+    times = twin.records[mid].times_ns
+    return max((i for i, t in enumerate(times) if 0 <= t <= when_ns), default=0)
 
 
 def readers(twin: RobotTwin, mid: ModuleId) -> list[ModuleId]:
@@ -200,15 +262,27 @@ def outage_reference(
     nothing)."""
     dead = dict(failed_at or {})
     rejoin: dict[ModuleId, int] = {}
-    held: dict[ModuleId, dict[ModuleId, int]] = {}
+    older: dict[ModuleId, int] = {}
+    held: dict[ModuleId, dict[ModuleId, int | tuple[int, int]]] = {}
     for o in outs:
         if o.long and o.failed_at is not None and o.module not in dead:
             dead[o.module] = o.failed_at
+            if o.rejoin_with is not None and o.rejoin is not None and o.rejoin > o.failed_at:
+                older[o.module] = o.rejoin_with
             if o.links:
-                held[o.module] = o.links
+                held[o.module] = {
+                    n: tn if until is None else (tn, until) for n, (tn, until) in o.links.items()
+                }
             if o.rejoin is not None:
                 rejoin[o.module] = o.rejoin
-    return ctrl.states(transitions, failed=list(failed), failed_at=dead, rejoin=rejoin, held=held)
+    return ctrl.states(
+        transitions,
+        failed=list(failed),
+        failed_at=dead,
+        rejoin=rejoin,
+        held=held,
+        rejoin_with=older,
+    )
 
 
 def compared_states(

@@ -110,6 +110,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         self.noise = noise
         self.rng = np.random.default_rng(seed)
         self.noise_events = {"flipped": 0, "dropped": 0}
+        self.welcomes = []
         legs, modules = build.legs, build.modules
         self.order = [ModuleId(i, j) for i in range(legs) for j in range(modules)]
         self.failed = failed_modules(failed, legs, modules)

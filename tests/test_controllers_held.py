@@ -34,6 +34,43 @@ def test_a_reader_holding_an_earlier_state_reads_it_until_the_rejoin() -> None:
     assert back.tolist()[3:] == [[[2, 1, 2]], [[2, 2, 1]]]
 
 
+def test_a_per_link_rejoin_reads_the_held_state_until_its_own_end() -> None:
+    ctrl = make_controller("ca1d", [[1, 2, 3]], rule=COPY_LEFT)
+    held = {"0.1": {"0.2": 0}}
+    back = ctrl.states(5, failed_at={"0.1": 1}, rejoin={"0.1": 3}, held=held)
+    # T2_N = T2 is the plain per-link failure
+    until = {"0.1": {"0.2": (0, 3)}}
+    same = ctrl.states(5, failed_at={"0.1": 1}, rejoin={"0.1": 3}, held=until)
+    np.testing.assert_array_equal(same, back)
+    # T2_N = 4: 0.2 still reads 0.1's S^0 = 2 in R^3 -> R^4, and 0.1's own state from R^4 on
+    late = ctrl.states(5, failed_at={"0.1": 1}, rejoin={"0.1": 3}, held={"0.1": {"0.2": (0, 4)}})
+    assert late.tolist()[:4] == back.tolist()[:4]
+    assert late.tolist()[4] == [[2, 2, 2]]  # 0.2 copied S^0 = 2 again, 0.1 its left 2
+    assert late.tolist()[5] == [[2, 2, 2]]
+    assert back.tolist()[4] == [[2, 2, 1]]
+
+
+def test_a_rejoin_with_an_older_state_shows_it_until_the_rejoin_and_resumes_from_it() -> None:
+    ctrl = make_controller("ca1d", [[1, 2, 3]], rule=COPY_LEFT)
+    # healthy: R^0..R^2 = [1,2,3], [3,1,2], [2,3,1]; 0.1 fails at 2 (S^2 = 3) and rejoins at
+    # 4 with S^1 = 1: R^3 = [1,1,3] (0.2 copied the S^2 = 3 shown in R^2), R^4 = [3,1,1] (held
+    # S^1), then the rule again: R^5 = [1,3,1], R^6 = [1,1,3]
+    got = ctrl.states(6, failed_at={"0.1": 2}, rejoin={"0.1": 4}, rejoin_with={"0.1": 1})
+    assert got.tolist() == [
+        [[1, 2, 3]], [[3, 1, 2]], [[2, 3, 1]], [[1, 1, 3]], [[3, 1, 1]], [[1, 3, 1]], [[1, 1, 3]]
+    ]  # fmt: skip
+    with pytest.raises(InputError, match="never rejoins"):
+        ctrl.states(6, failed_at={"0.1": 2}, rejoin_with={"0.1": 1})
+    with pytest.raises(InputError, match="T_R < T0"):
+        ctrl.states(6, failed_at={"0.1": 2}, rejoin={"0.1": 4}, rejoin_with={"0.1": 2})
+    with pytest.raises(InputError, match="T_R < T0"):
+        ctrl.states(6, failed_at={"0.1": 2}, rejoin={"0.1": 2}, rejoin_with={"0.1": 1})
+    w = np.triu(np.ones((1, 3, 3), dtype=int), 1)
+    nn = make_controller("nnsin", [3], weights=w)
+    with pytest.raises(InputError, match="CA models only"):
+        nn.states(6, failed_at={"0.1": 2}, rejoin={"0.1": 4}, rejoin_with={"0.1": 1})
+
+
 def test_held_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     ctrl = make_controller("ca2dsing", [[1, 2, 3], [4, 5, 6]], rule=COPY_LEFT)
     with pytest.raises(InputError, match="never fails"):
@@ -51,6 +88,14 @@ def test_held_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
     assert main(["states", str(path), "--fail-at", "0.0@2", "--held-by", "1.0=0.0"]) == 2
     err = capsys.readouterr().err
     assert "expected N=L.M@T" in err and "Traceback" not in err
+    assert main(["states", str(path), "--fail-at", "0.0@2", "--held-by", "1.0=0.0@1..x"]) == 2
+    err = capsys.readouterr().err
+    assert "N=L.M@T..T2" in err and "Traceback" not in err
+    with pytest.raises(InputError, match="must be >= 1"):
+        ctrl.states(3, failed_at={"0.0": 2}, held={"0.0": {"1.0": (1, 0)}})
+    assert main(["states", str(path), "--fail-at", "0.0@2", "--rejoin-with", "0.0"]) == 2
+    err = capsys.readouterr().err
+    assert "bad --rejoin-with" in err and "Traceback" not in err
 
 
 def test_states_cli_held_by(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -60,6 +105,13 @@ def test_states_cli_held_by(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     args = ["-T", "5", "--fail-at", "0.1@2", "--held-by", "0.2=0.1@1", "--rejoin", "0.1@4"]
     assert main(["states", str(path), *args]) == 0
     want = ctrl.states(5, failed_at={"0.1": 2}, rejoin={"0.1": 4}, held={"0.1": {"0.2": 1}})
+    assert json.loads(capsys.readouterr().out) == want.tolist()
+    args = ["-T", "5", "--fail-at", "0.1@2", "--held-by", "0.2=0.1@1..5", "--rejoin", "0.1@4"]
+    assert main(["states", str(path), *args, "--rejoin-with", "0.1@1"]) == 0
+    want = ctrl.states(
+        5, failed_at={"0.1": 2}, rejoin={"0.1": 4}, held={"0.1": {"0.2": (1, 5)}},
+        rejoin_with={"0.1": 1},
+    )  # fmt: skip
     assert json.loads(capsys.readouterr().out) == want.tolist()
 
 
@@ -94,15 +146,25 @@ def test_vectorised_held_equals_the_reference(
     ctrl, T = _ca(model, seed), 8
     fail = {(i, j): t0 for i, j, t0, _ in events}
     back = {(i, j): fail[i, j] + d for i, j, _, d in events if d}
-    held = {}
+    held: dict[tuple[int, int], dict[tuple[int, int], int | tuple[int, int]]] = {}
     for c, t0 in fail.items():
         readers = [r for r in _readers(model, c) if data.draw(st.booleans())]
-        held[c] = {r: data.draw(st.integers(0, t0)) for r in readers}
+        held[c] = {}
+        for r in readers:
+            tn = data.draw(st.integers(0, t0))
+            per_link = data.draw(st.booleans())  # a rejoin per link: until T2_N
+            held[c][r] = (tn, data.draw(st.integers(tn, T + 1))) if per_link else tn
+    older = {
+        c: data.draw(st.integers(0, fail[c] - 1))
+        for c in back
+        if 0 < fail[c] < back[c] and data.draw(st.booleans())
+    }
     ref = sequence_reference(
         model, ctrl.initial_states.tolist(), T, rules=ctrl.rules().tolist(), failed_at=fail,
-        rejoin=back, held=held,
+        rejoin=back, held=held, rejoin_with=older,
     )  # fmt: skip
-    np.testing.assert_array_equal(ctrl.states(T, failed_at=fail, rejoin=back, held=held), ref)
+    got = ctrl.states(T, failed_at=fail, rejoin=back, held=held, rejoin_with=older)
+    np.testing.assert_array_equal(got, ref)
 
 
 @settings(max_examples=40, deadline=None)

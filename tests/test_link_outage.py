@@ -17,7 +17,7 @@ from conftest import BuiltinBuild
 from bstool.buildfile import Build
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
-from hil_mock.outage import compared_states, cut_reference, outage_reference, outages
+from hil_mock.outage import Outage, compared_states, cut_reference, outage_reference, outages
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
 
@@ -31,7 +31,7 @@ def builds(builtin_build: BuiltinBuild) -> dict[str, Build]:
     }
 
 
-def _outage_exact(build: Build, reset: Reset, transitions: int = T) -> None:
+def _outage_exact(build: Build, reset: Reset, transitions: int = T) -> Outage:
     twin = RobotTwin(build, physics=False, perturb=Perturbation(resets=(reset,)))
     result = twin.run(transitions)
     outs = outages(twin)
@@ -44,6 +44,7 @@ def _outage_exact(build: Build, reset: Reset, transitions: int = T) -> None:
         m for m, seq in got.items() if seq[: transitions + 1] != want[:, m.leg, m.module].tolist()
     ]
     assert not bad, f"{outs[0].reference_text()}: {bad}"
+    return outs[0]
 
 
 @pytest.mark.parametrize(
@@ -67,6 +68,47 @@ def test_a_long_outage_is_dead_then_rejoins(
     builds: dict[str, Build], model: str, reset: Reset
 ) -> None:
     _outage_exact(builds[model], reset)
+
+
+def test_a_reader_that_welcomed_in_the_rejoin_transition_reads_its_held_state_there(
+    builds: dict[str, Build],
+) -> None:
+    """The rejoin is per link too (docs/link-redesign.md "Traced 2026-12-02"): 1.0 entered
+    transition 6 holding the lead 0.0 dead and WELCOMEd it there, so it reads its held S^3
+    through 6 (``held`` (3, 7)); 4.0 WELCOMEd it in 5 and reads it from the rejoin T2 = 6."""
+    o = _outage_exact(builds["ca2dsing"], Reset("0.0", 2.0, 3.0))
+    assert (o.failed_at, o.rejoin) == (4, 6)
+    assert o.links[ModuleId(1, 0)] == (3, 7)
+    assert o.links[ModuleId(4, 0)] == (3, None)
+
+
+def test_a_neighbour_that_left_its_wait_after_the_boot_but_before_the_join_went_on(
+    builds: dict[str, Build],
+) -> None:
+    """ca2ddiff 0.0 off at 1.22 s for 3 s: 0.1, 1.0 and 4.0 leave their wait just after 0.0
+    boots (a dead-limit), before its JOIN reaches them: they went on (classified by their
+    WELCOME, not by the boot), 4.0 with S^1 while the others held S^2."""
+    o = _outage_exact(builds["ca2ddiff"], Reset("0.0", 1.22, 3.0))
+    assert set(o.went_on) == {ModuleId(0, 1), ModuleId(1, 0), ModuleId(4, 0)}
+    assert o.links == {ModuleId(4, 0): (1, None)}
+
+
+@pytest.mark.parametrize(
+    ("model", "reset", "older"),
+    [
+        ("ca2ddiff", Reset("2.5", 1.0, 3.0), 1),  # 2.0 went on with S^1, 2.4 waited with S^2
+        ("ca2ddiff", Reset("2.3", 1.44, 3.0), 2),  # 2.4 went on with S^2, 2.2 waited with S^3
+    ],
+    ids=str,
+)
+def test_a_module_that_rejoins_with_an_older_state_resumes_from_it(
+    builds: dict[str, Build], model: str, reset: Reset, older: int
+) -> None:
+    """Its join takes the state a neighbour that went on held for it (rule (d)), older than the
+    one a neighbour that waited had received: ``rejoin_with`` T_R (docs/controllers.md)."""
+    o = _outage_exact(builds[model], reset)
+    assert o.rejoin_with == older
+    assert o.failed_at is not None and older < o.failed_at
 
 
 # NN: T = 20 (NN transitions are ~0.3 s): the module is back and rejoined before the end

@@ -40,8 +40,8 @@ IntArray = npt.NDArray[np.int64]
 FailedSpec = Iterable[ModuleId | tuple[int, int] | str]
 FailedAtSpec = Mapping[ModuleId, int] | Mapping[tuple[int, int], int] | Mapping[str, int]
 Cell = tuple[int, int]
-# failed module -> {reader: T_N}; modules as ModuleId, (leg, module) or "L.M"
-HeldSpec = Mapping[Any, Mapping[Any, int]]
+# failed module -> {reader: T_N or (T_N, T2_N)}; modules as ModuleId, (leg, module) or "L.M"
+HeldSpec = Mapping[Any, Mapping[Any, int | tuple[int, int]]]
 
 
 def controller_hash(obj: Controller | Mapping[str, Any]) -> str:
@@ -101,6 +101,7 @@ class Controller:
         failed_at: FailedAtSpec | None = None,
         rejoin: FailedAtSpec | None = None,
         held: HeldSpec | None = None,
+        rejoin_with: FailedAtSpec | None = None,
     ) -> IntArray:
         """R^0..R^T, shape (T+1, n, m); failed modules keep their R^0 state.
 
@@ -111,7 +112,10 @@ class Controller:
         ``held`` (CA only) makes a failure per link: ``held[c][N] = T_N`` (0 <= T_N <= T0)
         says neighbour N of the failed module c reads S_c^(T_N) from transition T_N on, while c
         is dead (a power cut between c's exchanges of one transition); neighbours not listed
-        read S_c^T0. All T_N = T0 is plain ``failed_at``.
+        read S_c^T0. All T_N = T0 is plain ``failed_at``. ``held[c][N] = (T_N, T2_N)`` makes
+        the rejoin per link too: N reads S_c^(T_N) in the transitions T_N <= t < T2_N (T2_N >=
+        T_N; without it, until c's ``rejoin``), and c's own state from T2_N on (a rejoin is not
+        atomic across wires either: docs/controllers.md "Per-link rejoin").
 
         ``rejoin`` maps failed modules (``failed`` or ``failed_at``) to the transition T2 >= T0
         at which they come back: the module still shows its held state in R^T2 and from
@@ -119,6 +123,11 @@ class Controller:
         neighbourhood; NN lead: held + 1, eq. 10; NN non-lead: its upstream t+1 states); from
         R^T2 on every neighbour reads its state again. T2 = T0 is the healthy sequence
         (docs/controllers.md "Rejoin").
+
+        ``rejoin_with`` (CA only) maps rejoining modules to T_R < T0: the module comes back
+        with its state of transition T_R (the one a neighbour that went on held for it, older
+        than the S^T0 it showed): it shows S^T0 in R^T0, S^(T_R) in R^(T0+1)..R^T2, and
+        resumes from S^(T_R) (docs/controllers.md "Rejoin with an older state").
         """
         if transitions < 0:
             raise InputError(f"transitions must be 0 or more, got {transitions}")
@@ -148,6 +157,7 @@ class Controller:
                 )
             back[cell] = int(when)
         links = self._held_links(held or {}, fail)
+        older = self._rejoin_with(rejoin_with or {}, fail, back)
 
         def frozen(t: int) -> list[tuple[int, int]]:
             """Cells holding their state in the transition R^t -> R^(t+1)."""
@@ -157,22 +167,61 @@ class Controller:
             """(reader, c) -> S_c^(T_N) for the links held in R^t -> R^(t+1)."""
             return {
                 (reader, c): int(done[tn][c])
-                for (c, reader), tn in links.items()
-                if tn <= t < back.get(c, transitions)
+                for (c, reader), (tn, until) in links.items()
+                if tn <= t < (back.get(c, transitions) if until is None else until)
             }
 
-        marks = [*fail.values(), *back.values(), *links.values()]
+        ends = [t for span in links.values() for t in span if t is not None]
+        turns = {fail[c] + 1: c for c in older}  # R^(T0+1): c shows its older state from here
+        marks = [*fail.values(), *back.values(), *ends, *turns]
         times = sorted({t for t in marks if 0 < t < transitions})
         first = times[0] if times else transitions
-        done = self._states(first, frozen(0), views(0, self.initial_states[None]))
+        done = self._states(first, frozen(0), views(0, self.initial_states[None])).copy()
         for start, end in zip(times, [*times[1:], transitions], strict=False):
+            for c, t_r in older.items():
+                if start == fail[c] + 1:
+                    done[-1][c] = done[t_r][c]
             more = self._continue(done[-1], end - start, frozen(start), views(start, done))
             done = np.concatenate([done, more[1:]])
+        for c, t_r in older.items():  # a run that ends in R^(T0+1)
+            if fail[c] + 1 == transitions:
+                done[-1][c] = done[t_r][c]
         return done
 
-    def _held_links(self, held: HeldSpec, fail: Mapping[Cell, int]) -> dict[tuple[Cell, Cell], int]:
-        """``held`` checked: (c, reader) -> T_N."""
-        links: dict[tuple[Cell, Cell], int] = {}
+    def _rejoin_with(
+        self, rejoin_with: FailedAtSpec, fail: Mapping[Cell, int], back: Mapping[Cell, int]
+    ) -> dict[Cell, int]:
+        """``rejoin_with`` checked: c -> T_R."""
+        out: dict[Cell, int] = {}
+        if rejoin_with and self.model in NN_MODELS:
+            raise InputError(
+                "a rejoin with an older state (rejoin_with, --rejoin-with) is for CA models only",
+                hint="an NN module rejoins from the state its downstream held: --rejoin L.M@T2",
+            )
+        for item, when in rejoin_with.items():
+            (cell,) = self.failed_cells([item])
+            c = ModuleId(*cell)
+            if cell not in back:
+                raise InputError(
+                    f"module {c} rejoins with its state of transition {when} but never rejoins",
+                    hint="give its failure and rejoin too: --fail-at L.M@T0 --rejoin L.M@T2, "
+                    "then --rejoin-with L.M@T_R",
+                )
+            if not 0 <= int(when) < fail[cell] < back[cell]:
+                raise InputError(
+                    f"module {c} rejoins with its state of transition {when}: needs "
+                    f"0 <= T_R < T0 = {fail[cell]} < T2 = {back[cell]}",
+                    hint="--rejoin-with L.M@T_R is an older state than the S^T0 it failed "
+                    "with, and it must be away at least one transition (T2 > T0)",
+                )
+            out[cell] = int(when)
+        return out
+
+    def _held_links(
+        self, held: HeldSpec, fail: Mapping[Cell, int]
+    ) -> dict[tuple[Cell, Cell], tuple[int, int | None]]:
+        """``held`` checked: (c, reader) -> (T_N, T2_N or None: until c rejoins)."""
+        links: dict[tuple[Cell, Cell], tuple[int, int | None]] = {}
         if held and self.model in NN_MODELS:
             raise InputError(
                 "a per-link held state (held, --held-by) is for CA models only",
@@ -193,7 +242,8 @@ class Controller:
                 for j in range(self.modules)
                 if cell in ca_neighbours(self.model, self.legs, self.modules, i, j)
             ]
-            for who, when in readers.items():
+            for who, span in readers.items():
+                when, until = span if isinstance(span, tuple) else (span, None)
                 (reader,) = self.failed_cells([who])
                 n = ModuleId(*reader)
                 if n not in readers_of_c:
@@ -208,7 +258,13 @@ class Controller:
                         f"0..{fail[cell]} ({c} fails at {fail[cell]} and shows no later state)",
                         hint="--held-by N=L.M@T_N needs T_N <= T of --fail-at L.M@T",
                     )
-                links[cell, reader] = int(when)
+                if until is not None and int(until) < int(when):
+                    raise InputError(
+                        f"module {n} reads module {c}'s held state of transition {when} until "
+                        f"transition {until}: the end must be >= {when}",
+                        hint="--held-by N=L.M@T_N..T2_N needs T2_N >= T_N",
+                    )
+                links[cell, reader] = (int(when), None if until is None else int(until))
         return links
 
     def _continue(

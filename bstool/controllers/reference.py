@@ -152,7 +152,8 @@ def sequence_reference(
     failed: Sequence[Cell] = (),
     failed_at: Mapping[Cell, int] | None = None,
     rejoin: Mapping[Cell, int] | None = None,
-    held: Mapping[Cell, Mapping[Cell, int]] | None = None,
+    held: Mapping[Cell, Mapping[Cell, int | tuple[int, int]]] | None = None,
+    rejoin_with: Mapping[Cell, int] | None = None,
     k: int = K,
 ) -> list[Lattice]:
     """R^0..R^T. For NN models ``initial`` only needs the leads; R^0 is propagated.
@@ -160,7 +161,9 @@ def sequence_reference(
     ``failed_at[c] = T0``: cell c holds S^T0 in every transition from T0 on; ``rejoin[c] = T2``
     (>= T0): from the transition R^T2 -> R^(T2+1) on it follows its rule again, from the state
     it held. ``failed`` cells fail at 0. CA: ``held[c][N] = T_N`` (<= T0): neighbour N reads
-    S_c^(T_N) in every transition from T_N until c rejoins (the others read S_c^T0).
+    S_c^(T_N) in every transition from T_N until c rejoins (the others read S_c^T0);
+    ``(T_N, T2_N)``: in the transitions T_N <= t < T2_N. ``rejoin_with[c] = T_R`` (< T0 < T2):
+    c shows S_c^(T_R) in R^(T0+1)..R^T2 and resumes from it.
     """
     if model in NN_MODELS:
         current = nn_initial_reference(model, [leg[0] for leg in initial], weights, k)
@@ -168,8 +171,16 @@ def sequence_reference(
         current = [list(leg) for leg in initial]
     fail = {**dict(failed_at or {}), **dict.fromkeys(failed, 0)}
     back = dict(rejoin or {})
+    spans = {
+        (reader, c): span if isinstance(span, tuple) else (span, back.get(c, transitions))
+        for c, readers in (held or {}).items()
+        for reader, span in readers.items()
+    }
     frames = [current]
     for t in range(transitions):
+        for (i, j), t_r in (rejoin_with or {}).items():
+            if t == fail[i, j] + 1:
+                current[i][j] = frames[t_r][i][j]
         frozen = {
             (i, j): current[i][j]
             for (i, j), t0 in fail.items()
@@ -177,13 +188,15 @@ def sequence_reference(
         }
         views = {
             (reader, c): frames[tn][c[0]][c[1]]
-            for c, readers in (held or {}).items()
-            for reader, tn in readers.items()
-            if tn <= t < back.get(c, transitions)
+            for (reader, c), (tn, until) in spans.items()
+            if tn <= t < until
         }
         if model in NN_MODELS:
             current = nn_step_reference(model, current, weights, frozen, k)
         else:
             current = ca_step_reference(model, current, rules, frozen, views)
         frames.append(current)
+    for (i, j), t_r in (rejoin_with or {}).items():  # a run that ends in R^(T0+1)
+        if transitions == fail[i, j] + 1:
+            current[i][j] = frames[t_r][i][j]
     return frames
