@@ -47,7 +47,9 @@ class Links:
     chance that a byte on a link is hit (half of the hits drop it, half flip one bit)."""
 
     noise: float
-    rng: np.random.Generator
+    # one noise stream per sender, so what hits a module's k-th byte does not depend on the
+    # order in which the scheduler runs the modules
+    noise_rngs: dict[ModuleId, np.random.Generator]
     noise_events: dict[str, int]
     wires: Wires
     stamps: dict[ModuleId, Stamp]
@@ -59,11 +61,12 @@ class Links:
         if value & 0xF8 == WELCOME:
             ends = self.wires.get((mid, pin), ())
             self.welcomes.extend((mid, peer, start_ns) for peer, _ in ends)
-        if self.noise and self.rng.random() < self.noise:
-            if self.rng.random() < 0.5:  # the byte is lost (a start bit not seen)
+        rng = self.noise_rngs[mid] if self.noise else None
+        if rng is not None and rng.random() < self.noise:
+            if rng.random() < 0.5:  # the byte is lost (a start bit not seen)
                 self.noise_events["dropped"] += 1
                 return
-            value ^= 1 << int(self.rng.integers(8))  # one bit flipped on the wire
+            value ^= 1 << int(rng.integers(8))  # one bit flipped on the wire
             self.noise_events["flipped"] += 1
         tx_bit_ns = self.stamps[mid].clock.bit_ns(mode)  # the sender's own bit time
         for peer, peer_pin in self.wires.get((mid, pin), ()):

@@ -87,7 +87,8 @@ class Outage:
     def links(self) -> dict[ModuleId, tuple[int, int | None]]:
         """CA: reader N -> (T_N, T2_N) for the readers that went on and read a state of their
         own: an earlier one than ``failed_at``, or theirs past c's rejoin T2 (T2_N > T2 + 1);
-        T2_N None: until T2 (``states(held={c: links})``)."""
+        T2_N None: until T2 (``states(held={c: links})``). With ``rejoin_with`` T_R, a reader
+        that waited for a state earlier than S^T reads S^(T_R), the one c came back with."""
         t = self.failed_at
         if t is None:
             return {}
@@ -100,6 +101,12 @@ class Outage:
             later = until is not None and self.rejoin is not None and until > self.rejoin + 1
             if n in self.reads and (tn < t or later):
                 out[n] = (tn, until)
+        if self.rejoin_with is not None:
+            # a reader that waited for a state c had not sent it yet (T_N < T) gets the one c
+            # rejoins with, S^(T_R): it reads that until c's rejoin (traced 2026-12-03)
+            for n, tn in sorted(self.held.items()):
+                if n in self.reads and n not in self.went_on and tn < t:
+                    out[n] = (self.rejoin_with, None)
         return out
 
     def to_json(self) -> dict[str, Any]:
@@ -147,7 +154,9 @@ def outages(twin: RobotTwin) -> list[Outage]:
         for k, off_s in enumerate(offs):
             booted = boots[k] if k < len(boots) else None
             waits = {
-                n: w for n in readers(twin, mid) if (w := _wait(twin.records[n].times_ns, off_s))
+                n: w
+                for n in readers(twin, mid)
+                if (w := _wait(twin.records[n].times_ns, off_s, booted if twin._nn else None))
             }
             back = math.inf if booted is None else booted * NS
             # CA: N went on when it left its wait before it WELCOMEd c (a dead-limit can fire
@@ -230,10 +239,14 @@ def ca_readers(twin: RobotTwin, mid: ModuleId) -> frozenset[ModuleId]:
     )
 
 
-def _wait(times_ns: list[int], off_s: float) -> tuple[int, float] | None:
+def _wait(times_ns: list[int], off_s: float, booted_s: float | None) -> tuple[int, float] | None:
     """(W_N, when N left it, ns) of a neighbour with these transition times: of the transition
-    it showed at the power-off and the next, the one that lasted longer after it."""
+    it showed at the power-off and the next, the one that lasted longer after it. With
+    ``booted_s`` (NN) only the time until the boot counts: after it comes the rejoin, not a
+    wait for the module, and an NN leg's transition after a long outage can outlast the
+    dead-limit wait before it (CA's join is told apart by its WELCOMEs instead)."""
     off = off_s * NS
+    back = math.inf if booted_s is None else booted_s * NS
     shown = [i for i, t in enumerate(times_ns) if 0 <= t <= off]
     if not shown:
         return None
@@ -243,7 +256,7 @@ def _wait(times_ns: list[int], off_s: float) -> tuple[int, float] | None:
         return times_ns[w + 1] if w + 1 < len(times_ns) and times_ns[w + 1] >= 0 else math.inf
 
     def waited(w: int) -> float:
-        return end(w) - max(times_ns[w], off) if w < len(times_ns) else -math.inf
+        return min(end(w), back) - max(times_ns[w], off) if w < len(times_ns) else -math.inf
 
     w = max((s, s + 1), key=waited)
     return w, end(w)

@@ -108,11 +108,11 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         if not 0.0 <= noise <= 1.0:
             raise InputError(f"link noise must be a probability in 0..1, got {noise}")
         self.noise = noise
-        self.rng = np.random.default_rng(seed)
         self.noise_events = {"flipped": 0, "dropped": 0}
         self.welcomes = []
         legs, modules = build.legs, build.modules
         self.order = [ModuleId(i, j) for i in range(legs) for j in range(modules)]
+        self.noise_rngs = {m: np.random.default_rng([seed, m.leg, m.module]) for m in self.order}
         self.failed = failed_modules(failed, legs, modules)
         self.die = dying_modules(die, self.failed, legs, modules)
         self.limp_failed = limp_failed

@@ -10,6 +10,8 @@ strict xfails (docs/link-redesign.md §2.4).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from conftest import BuiltinBuild
@@ -17,7 +19,14 @@ from conftest import BuiltinBuild
 from bstool.buildfile import Build
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
-from hil_mock.outage import Outage, compared_states, cut_reference, outage_reference, outages
+from hil_mock.outage import (
+    Outage,
+    _wait,
+    compared_states,
+    cut_reference,
+    outage_reference,
+    outages,
+)
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
 
@@ -126,6 +135,60 @@ def test_an_nn_long_outage_is_dead_then_rejoins(
     builds: dict[str, Build], model: str, reset: Reset
 ) -> None:
     _outage_exact(builds[model], reset, 20)
+
+
+def test_an_nn_wait_is_counted_only_while_the_module_is_off() -> None:
+    """Traced 2026-12-03 (nnsin, 2.3 off 2.0-5.0 s, 1 % noise, seed 1): 2.4 waited 2.7 s in
+    transition 3 (the dead-limit) and then 3.6 s in transition 4, mostly after 2.3 booted (the
+    rejoin). Its wait for 2.3 is transition 3: the time after the boot does not count (NN)."""
+    ns = 1_000_000_000
+    times = [round(t * ns) for t in (0.245, 0.868, 1.447, 1.858, 4.698, 8.281, 8.596)]
+    assert _wait(times, 2.0, 5.0) == (3, times[4])
+    assert _wait(times, 2.0, None) == (4, times[5])  # by lengths alone: the rejoin's transition
+
+
+@pytest.mark.slow
+def test_an_nn_long_outage_under_noise_is_compared_with_the_wait_before_the_boot(
+    builds: dict[str, Build],
+) -> None:
+    build = builds["nnsin"]
+    p = Perturbation(resets=(Reset("2.3", 2.0, 3.0),), seed=1)
+    twin = RobotTwin(build, noise=0.01, seed=1, physics=False, perturb=p)
+    result = twin.run(12)
+    outs = outages(twin)
+    assert outs[0].held == {ModuleId(2, 4): 3, ModuleId(2, 5): 3} and outs[0].rejoin == 4
+    want = outage_reference(load_controller(build.controller_file), 12, outs)
+    got = compared_states(result.states, want, outs)
+    assert all(seq[:13] == want[:, m.leg, m.module].tolist() for m, seq in got.items())
+
+
+def test_a_reader_that_waited_for_an_unsent_state_reads_the_one_the_module_came_back_with() -> None:
+    c, went, ahead, waited = ModuleId(0, 0), ModuleId(1, 0), ModuleId(0, 1), ModuleId(0, 5)
+    held = {went: 3, ahead: 4, waited: 3}
+    o = Outage(c, 2.0, 5.0, held, rejoin=5, rejoined_at=5, reads=frozenset(held),
+               went_on={went: 3}, rejoin_with=3)  # fmt: skip
+    assert o.failed_at == 4
+    assert o.links == {went: (3, None), waited: (3, None)}  # ahead had S^4: it reads S^T
+    assert "--held-by L0.M5=L0.M0@3" in o.reference_text()
+    assert replace(o, rejoin_with=None).links == {went: (3, None)}  # came back with S^T
+
+
+@pytest.mark.slow
+def test_a_long_lead_outage_under_noise_where_the_module_came_back_with_an_older_state(
+    builds: dict[str, Build],
+) -> None:
+    """Traced 2026-12-03 (ca2dsing, 0.0 off 2.0-5.0 s, 1 % noise, seed 4): 0.5 waited in
+    transition 4 for the lead's S^4, which the lead had shown but not sent it; the lead came
+    back with S^3 (rejoin_with) and answered 0.5's REQ with it."""
+    build = builds["ca2dsing"]
+    p = Perturbation(resets=(Reset("0.0", 2.0, 3.0),), seed=4)
+    twin = RobotTwin(build, noise=0.01, seed=4, physics=False, perturb=p)
+    result = twin.run(12)
+    outs = outages(twin)
+    assert outs[0].rejoin_with == 3 and outs[0].links[ModuleId(0, 5)] == (3, None)
+    want = outage_reference(load_controller(build.controller_file), 12, outs)
+    got = compared_states(result.states, want, outs)
+    assert all(seq[:13] == want[:, m.leg, m.module].tolist() for m, seq in got.items())
 
 
 @pytest.mark.parametrize(
