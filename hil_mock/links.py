@@ -61,8 +61,7 @@ class Links:
         if value & 0xF8 == WELCOME:
             ends = self.wires.get((mid, pin), ())
             self.welcomes.extend((mid, peer, start_ns) for peer, _ in ends)
-        rng = self.noise_rngs[mid] if self.noise else None
-        if rng is not None and rng.random() < self.noise:
+        if self.noise and (rng := self.noise_rngs[mid]).random() < self.noise:
             if rng.random() < 0.5:  # the byte is lost (a start bit not seen)
                 self.noise_events["dropped"] += 1
                 return

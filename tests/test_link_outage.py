@@ -40,8 +40,11 @@ def builds(builtin_build: BuiltinBuild) -> dict[str, Build]:
     }
 
 
-def _outage_exact(build: Build, reset: Reset, transitions: int = T) -> Outage:
-    twin = RobotTwin(build, physics=False, perturb=Perturbation(resets=(reset,)))
+def _outage_exact(
+    build: Build, reset: Reset, transitions: int = T, *, noise: float = 0.0, seed: int = 0
+) -> Outage:
+    perturb = Perturbation(resets=(reset,), seed=seed)
+    twin = RobotTwin(build, noise=noise, seed=seed, physics=False, perturb=perturb)
     result = twin.run(transitions)
     outs = outages(twin)
     assert outs and outs[0].long  # its neighbours went on without it
@@ -151,15 +154,8 @@ def test_an_nn_wait_is_counted_only_while_the_module_is_off() -> None:
 def test_an_nn_long_outage_under_noise_is_compared_with_the_wait_before_the_boot(
     builds: dict[str, Build],
 ) -> None:
-    build = builds["nnsin"]
-    p = Perturbation(resets=(Reset("2.3", 2.0, 3.0),), seed=1)
-    twin = RobotTwin(build, noise=0.01, seed=1, physics=False, perturb=p)
-    result = twin.run(12)
-    outs = outages(twin)
-    assert outs[0].held == {ModuleId(2, 4): 3, ModuleId(2, 5): 3} and outs[0].rejoin == 4
-    want = outage_reference(load_controller(build.controller_file), 12, outs)
-    got = compared_states(result.states, want, outs)
-    assert all(seq[:13] == want[:, m.leg, m.module].tolist() for m, seq in got.items())
+    o = _outage_exact(builds["nnsin"], Reset("2.3", 2.0, 3.0), 12, noise=0.01, seed=1)
+    assert o.held == {ModuleId(2, 4): 3, ModuleId(2, 5): 3} and o.rejoin == 4
 
 
 def test_a_reader_that_waited_for_an_unsent_state_reads_the_one_the_module_came_back_with() -> None:
@@ -180,15 +176,8 @@ def test_a_long_lead_outage_under_noise_where_the_module_came_back_with_an_older
     """Traced 2026-12-03 (ca2dsing, 0.0 off 2.0-5.0 s, 1 % noise, seed 4): 0.5 waited in
     transition 4 for the lead's S^4, which the lead had shown but not sent it; the lead came
     back with S^3 (rejoin_with) and answered 0.5's REQ with it."""
-    build = builds["ca2dsing"]
-    p = Perturbation(resets=(Reset("0.0", 2.0, 3.0),), seed=4)
-    twin = RobotTwin(build, noise=0.01, seed=4, physics=False, perturb=p)
-    result = twin.run(12)
-    outs = outages(twin)
-    assert outs[0].rejoin_with == 3 and outs[0].links[ModuleId(0, 5)] == (3, None)
-    want = outage_reference(load_controller(build.controller_file), 12, outs)
-    got = compared_states(result.states, want, outs)
-    assert all(seq[:13] == want[:, m.leg, m.module].tolist() for m, seq in got.items())
+    o = _outage_exact(builds["ca2dsing"], Reset("0.0", 2.0, 3.0), 12, noise=0.01, seed=4)
+    assert o.rejoin_with == 3 and o.links[ModuleId(0, 5)] == (3, None)
 
 
 @pytest.mark.parametrize(
