@@ -2,9 +2,11 @@
 last module (2.5) for 2, 3 and 5 s at 10 instants 1.0..3.0 s, T = 10, no physics; one JSON line
 per run (exact modules of 30; stalled: modules other than the reset one that did not make T;
 rejoined: the reset module was back in step by the end; S/L/D; the reference used) and a
-summary line.
+summary line. NN builds run the same way (``--models nnsin,nnsig -T 20``: NN transitions are
+shorter, so the module is back well before the end).
 
-    python bench/ca_long_outages.py BUILD_ROOT [--models ca1d,ca2dsing,ca2ddiff]
+    python bench/ca_long_outages.py BUILD_ROOT [--models ca1d,ca2dsing,ca2ddiff] [-T 10]
+        [--instants 10]
 
 BUILD_ROOT/<model> are `bstool compile` outputs.
 """
@@ -22,13 +24,11 @@ from hil_mock.outage import compared_states, outage_reference, outages
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
 
-T = 10
 MODULES = ("0.0", "2.3", "2.5")
 OFF_S = (2.0, 3.0, 5.0)
-INSTANTS = [round(float(x), 2) for x in np.linspace(1.0, 3.0, 10)]
 
 
-def run(root: str, model: str, module: str, off: float, at: float) -> dict[str, object]:
+def run(root: str, model: str, module: str, off: float, at: float, T: int) -> dict[str, object]:
     build = load_build(f"{root}/{model}")
     twin = RobotTwin(build, physics=False, perturb=Perturbation(resets=(Reset(module, at, off),)))
     result = twin.run(T)
@@ -48,13 +48,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("build_root", help="folder with one `bstool compile` output per model")
     parser.add_argument("--models", default="ca1d,ca2dsing,ca2ddiff", help="comma-separated")
+    parser.add_argument("-T", "--transitions", type=int, default=10)
+    parser.add_argument("--instants", type=int, default=10, help="power-off instants in 1-3 s")
     args = parser.parse_args()
+    instants = [round(float(x), 2) for x in np.linspace(1.0, 3.0, args.instants)]
     t0, rows = time.perf_counter(), []
     for model in args.models.split(","):
         for module in MODULES:
             for off in OFF_S:
-                for at in INSTANTS:
-                    rows.append(run(args.build_root, model, module, off, at))
+                for at in instants:
+                    rows.append(run(args.build_root, model, module, off, at, args.transitions))
                     print(json.dumps(rows[-1]), flush=True)
     exact = sum(r["exact"] == 30 for r in rows)
     stalled = sum(bool(r["stalled"]) for r in rows)

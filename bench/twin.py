@@ -22,8 +22,7 @@ def main() -> None:
 
     from bstool.builtin import builtin_controller
     from bstool.compile import compile_controller
-    from hil_mock.robot import RobotTwin, load_build
-    from hil_mock.schedule import advance_globally
+    from hil_mock.robot import GlobalSchedulerTwin, RobotTwin, load_build
     from hil_mock.stamp import Stamp, Status
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -31,15 +30,11 @@ def main() -> None:
         compile_controller(builtin_controller(args.model), build_dir)
         build = load_build(build_dir)
 
-        class GlobalTwin(RobotTwin):  # the scheduler the local one replaced, for the ratio
-            def _advance_stamps(self, limit_ns: int) -> None:
-                advance_globally(self, limit_ns)
-
         rows = []
         for label, cls, physics in (
             ("30 modules + MuJoCo", RobotTwin, True),
             ("30 modules, no physics", RobotTwin, False),
-            ("no physics, global sched.", GlobalTwin, False),
+            ("no physics, global sched.", GlobalSchedulerTwin, False),
         ):
             twin = cls(build, physics=physics)
             t0 = time.perf_counter()

@@ -24,7 +24,7 @@ from hil_mock.body import LIMP_AFTER_S, Body, ServoTrack
 from hil_mock.faults import Faults, dying_modules, failed_modules
 from hil_mock.links import Links, wires
 from hil_mock.perturb import Perturbation, PerturbRun
-from hil_mock.schedule import CHUNK_STEPS, Scheduler
+from hil_mock.schedule import CHUNK_STEPS, Scheduler, advance_globally
 from hil_mock.stamp import Stamp, StampIO
 from hil_mock.stamp.clock import NOMINAL
 from hil_mock.twin_result import NS, OFF_STATE, ModuleRecord, TwinResult, ram_reader
@@ -112,7 +112,9 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         self.welcomes = []
         legs, modules = build.legs, build.modules
         self.order = [ModuleId(i, j) for i in range(legs) for j in range(modules)]
-        self.noise_rngs = {m: np.random.default_rng([seed, m.leg, m.module]) for m in self.order}
+        self.noise_rngs = (
+            {m: np.random.default_rng([seed, m.leg, m.module]) for m in self.order} if noise else {}
+        )
         self.failed = failed_modules(failed, legs, modules)
         self.die = dying_modules(die, self.failed, legs, modules)
         self.limp_failed = limp_failed
@@ -317,3 +319,12 @@ class RobotTwin(Body, Links, Faults, Scheduler):
             virtual_seconds=self.t_ns / NS,
             instructions=sum(s.instructions for s in self.ran.values()),
         )
+
+
+class GlobalSchedulerTwin(RobotTwin):
+    """The twin on the scheduler the local one replaced (:func:`hil_mock.schedule.
+    advance_globally`): the reference tests/test_twin_scheduler.py and bench/twin.py compare
+    it with, record for record and in speed."""
+
+    def _advance_stamps(self, limit_ns: int) -> None:
+        advance_globally(self, limit_ns)

@@ -217,6 +217,19 @@ def test_slot_that_does_not_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
         compile_controller(CA, tmp_path / "b", period=0.5, modules=["0.0"])
     assert err.value.hint and "RULE_SLOTS" in err.value.hint
     assert not (tmp_path / "b").exists()
+    # the program and its DATA overlap though their sizes add up to the slot (its alignment):
+    # no "0 bytes over"
+    calls: list[int] = []
+
+    def overlapping(sources: dict[str, str]) -> object:
+        calls.append(1)
+        if len(calls) == 1:  # the build; then the probe measures the program alone
+            raise SourceError("Data occupies same location as program", file="main.bsx", code=124)
+        return SimpleNamespace(slots={0: SimpleNamespace(program_bytes=2047, data_bytes=1)})
+
+    monkeypatch.setattr(build, "_tokenize_sources", overlapping)
+    with pytest.raises(BuildError, match="its program and DATA overlap in the 2048-byte slot"):
+        compile_controller(CA, tmp_path / "b", period=0.5, modules=["0.0"])
 
 
 def test_ram_overflow(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

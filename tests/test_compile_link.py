@@ -15,6 +15,8 @@ from bstool.compile.calibration import DEFAULT
 from bstool.compile.plan import build_plans
 from bstool.compile.topology import links, module_links, reads
 from bstool.controllers import CA_MODELS, MODELS, NN_MODELS, load_controller
+from bstool.controllers.controller import make_controller
+from bstool.errors import BuildError
 from bstool.moduleid import ModuleId, all_modules
 from bstool.wire import link
 
@@ -82,19 +84,30 @@ def test_frame_round_trip(kind: str, nn: bool, t: int, states: list[int]) -> Non
 
 @given(
     h=st.integers(0, 7),
-    states=st.lists(st.integers(0, 15), min_size=1, max_size=5),
-    flip=st.integers(0, 39),
+    states=st.lists(st.integers(0, 15), min_size=1, max_size=link.MAX_PACKED_STATES),
+    flip=st.integers(0, 23),
+    other=st.integers(0, 23),
 )
-def test_packed_states(h: int, states: list[int], flip: int) -> None:
-    """NN states after READY(h): round trip, every single-bit error and another h rejected."""
+def test_packed_states(h: int, states: list[int], flip: int, other: int) -> None:
+    """NN states after READY(h): round trip; every single-bit error, every pair of bit errors
+    in two bytes and another h rejected."""
     raw = link.pack_states(states, h)
     assert len(raw) == link.packed_length(len(states)) == len(states) // 2 + 1
     assert link.unpack_states(raw, h, len(states)) == tuple(states)
-    bit = flip % (8 * len(raw))
+    bits = 8 * len(raw)
+    first, second = flip % bits, other % bits
     bad = bytearray(raw)
-    bad[bit // 8] ^= 1 << (bit % 8)
+    bad[first // 8] ^= 1 << (first % 8)
     assert link.unpack_states(bytes(bad), h, len(states)) is None
+    if first // 8 != second // 8:
+        bad[second // 8] ^= 1 << (second % 8)
+        assert link.unpack_states(bytes(bad), h, len(states)) is None
     assert all(link.unpack_states(raw, u, len(states)) is None for u in range(8) if u != h)
+
+
+def test_a_states_frame_longer_than_its_check_is_refused() -> None:
+    with pytest.raises(ValueError, match="at most 5"):
+        link.pack_states([1] * (link.MAX_PACKED_STATES + 1), 0)
 
 
 @given(s=st.integers(0, 15), t=st.integers(0, 7), flip=st.integers(0, 7))
@@ -238,3 +251,17 @@ def test_dead_limit_is_at_least_a_second_and_a_half() -> None:
     assert link.CA_TICK_QUIET - 1 + max(ask, listen, heard, ask_heard) < 256
     assert link.nn_dead_ticks() * link.NN_TICK_MS >= 1500
     assert link.nn_join_ticks() * link.NN_TICK_MS >= 3000 + link.nn_dead_ticks()
+
+
+@pytest.mark.parametrize("modules", [6, 7])
+def test_nn_legs_longer_than_the_states_check_are_refused(modules: int) -> None:
+    """Module j relays j + 1 states: a leg of 7 modules would need a 4-byte frame."""
+    weights = [[[int(a < j) for j in range(modules)] for a in range(modules)]] * 2
+    ctrl = make_controller("nnsig", [3, 9], weights=weights)
+    if modules == 6:
+        plans = build_plans(ctrl, DEFAULT, 0.475, "0" * 8)
+        longest = max(len(ll.send) for plan in plans for ll in plan.links)
+        assert longest == link.MAX_PACKED_STATES
+        return
+    with pytest.raises(BuildError, match="longer than the 5 its check protects"):
+        build_plans(ctrl, DEFAULT, 0.475, "0" * 8)

@@ -17,6 +17,7 @@ from conftest import BuiltinBuild
 from bstool.buildfile import Build
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
+from bstool.wire import link
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
 from hil_mock.twin_result import TwinResult
@@ -155,3 +156,48 @@ def test_the_nn_relay_survives_a_cut_link(
         want[:, b.leg, b.module] = ctrl.states(T, failed=upstream)[:, b.leg, b.module]
     assert not result.stalled
     assert np.array_equal(result.state_array(build.legs, build.modules, T), want)
+
+
+class _TappedTwin(RobotTwin):
+    """Records every byte a stamp sends: (start ns, sender, pin, value)."""
+
+    def __init__(self, build: Build) -> None:
+        super().__init__(build, physics=False)
+        self.sent: list[tuple[int, ModuleId, int, int]] = []
+
+    def _route(self, mid: ModuleId, pin: int, value: int, start_ns: int, mode: int) -> None:
+        self.sent.append((start_ns, mid, pin, value))
+        super()._route(mid, pin, value, start_ns, mode)
+
+
+@pytest.mark.parametrize("model", ["nnsin", "nnsig"])
+def test_the_stamps_pack_states_as_the_spec_says(
+    serve_builds: dict[str, Build], model: str
+) -> None:
+    """Every states frame a stamp sends after READY(h) is bstool.wire.link.pack_states of the
+    states 0..j of transition h + 1 (mod 8) of the reference: the PBASIC fold and the Python
+    one agree byte for byte, for frames of 1, 2 and 3 bytes."""
+    build = serve_builds[model]
+    twin = _TappedTwin(build)
+    result = twin.run(T)
+    assert not result.stalled
+    want = load_controller(build.controller_file).states(T + 2)  # the leads run ahead
+    master_end = {(w.slave, w.slave_pin): (w.master, w.master_pin) for w in build.manifest.links}
+    ready: dict[tuple[ModuleId, int], int] = {}  # master end -> h of the READY it was sent
+    frames: dict[tuple[ModuleId, int], list[int]] = {}
+    seen = {1: 0, 2: 0, 3: 0}
+    for _, mid, pin, value in sorted(twin.sent, key=lambda e: e[0]):
+        if (mid, pin) in master_end and value & 0xF8 == link.READY:
+            end = master_end[(mid, pin)]
+            ready[end], frames[end] = value & 7, []
+        elif (end := (mid, pin)) in ready:
+            frames[end].append(value)
+            if len(frames[end]) == link.packed_length(mid.module + 1):
+                h = ready.pop(end)
+                raw = bytes(frames.pop(end))
+                ts = [t for t in range(T + 3) if t % 8 == (h + 1) % 8]
+                assert any(
+                    raw == link.pack_states(list(want[t, mid.leg, : mid.module + 1]), h) for t in ts
+                ), (mid, h, raw.hex(" "))
+                seen[len(raw)] += 1
+    assert all(seen.values()), seen

@@ -13,15 +13,7 @@ import pytest
 from bstool import buildfile
 from bstool.moduleid import ModuleId
 from hil_mock.perturb import Perturbation, Reset
-from hil_mock.robot import RobotTwin
-from hil_mock.schedule import advance_globally
-
-
-class GlobalSchedulerTwin(RobotTwin):
-    """The reference: every step bounded by the horizon of every other stamp in the robot."""
-
-    def _advance_stamps(self, limit_ns: int) -> None:
-        advance_globally(self, limit_ns)
+from hil_mock.robot import GlobalSchedulerTwin, RobotTwin
 
 
 def _record(twin: RobotTwin) -> dict[str, Any]:

@@ -223,8 +223,9 @@ def _too_big(plan: ModulePlan, slot: int, over: int) -> BuildError:
         if slot
         else "the number of links (model) or the NN table"
     )
+    how = f"{over} bytes over" if over > 0 else "its program and DATA overlap in"
     return BuildError(
-        f"{plan.label}: slot {slot} ({plan.slot_files[slot]}) does not fit: {over} bytes over "
+        f"{plan.label}: slot {slot} ({plan.slot_files[slot]}) does not fit: {how} "
         f"the {SLOT_BYTES}-byte slot",
         hint=f"reduce {what}; see docs/compile.md (slot layout)",
     )

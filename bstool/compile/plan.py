@@ -26,7 +26,6 @@ PORT_NAMES = {
     "bypass_prev": "LinkByPrev",
     "bypass_next": "LinkByNext",
 }
-MAX_PAYLOAD = 15  # receive buffer bytes (RAM)
 
 
 @dataclass(frozen=True)
@@ -230,10 +229,12 @@ def _plan(
                 only_if_dead=guard,
             )
         )
-    if rx_size > MAX_PAYLOAD:
+    longest = max((max(len(ll.send), len(ll.store)) for ll in plan.links), default=0)
+    if family == "nn" and longest > wire.MAX_PACKED_STATES:
         raise BuildError(
-            f"{mid.label}: a frame of {rx_size} states does not fit the receive buffer",
-            hint=f"NN legs of more than {MAX_PAYLOAD + 1} modules are not supported",
+            f"{mid.label}: a states frame of {longest} states is longer than the "
+            f"{wire.MAX_PACKED_STATES} its check protects (protocol/link.md §4.6)",
+            hint=f"NN legs of more than {wire.MAX_PACKED_STATES + 1} modules are not supported",
         )
     plan.rx_size = rx_size
     plan.serve = wire.serve_constants(family == "nn")

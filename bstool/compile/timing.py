@@ -50,7 +50,8 @@ GAP_STATEMENTS = 20
 jumps between wires); calibrated on the twin's interpreter (docs/compile.md)."""
 NN_STORE_STATEMENTS = 4
 """NN: a slave between the packed states and the pulse before TOOK, besides one store per
-state: the check, the joining test (protocol/link.md §4.6)."""
+state and one fold statement per byte: the check's test, the joining test (protocol/link.md
+§4.6)."""
 NN_MEETINGS = 5.6
 """NN: the meetings on a transition's critical path at one hop: the master's REQ heard by a
 listening slave (READY, the states and TOOK in one try), and its REP once the slave shows it;
@@ -135,7 +136,7 @@ class CompileTiming:
             2 * pulse_ms
             + frame_ms(packed_bytes(states), k)
             + frame_ms(1, k)
-            + self.statements(NN_STORE_STATEMENTS + states + TRY_STATEMENTS)
+            + self.statements(NN_STORE_STATEMENTS + packed_bytes(states) + states + TRY_STATEMENTS)
         )
 
     def ca_ask_ms(self, k: ServeConstants) -> float:
@@ -172,7 +173,7 @@ class CompileTiming:
         """A slave's longest time between two pulses: a request starting at the end of the
         longest listen, received whole, then the statements to the pulse before its reply. NN:
         the request is a header (or transition 0's two-byte JOIN); or, from the pulse before
-        READY, READY, the master's pulse and the packed states, and the stores."""
+        READY, READY, the master's pulse and the packed states, the check's fold and the stores."""
         listen = self.wait_ms(k.listen + k.jitter_units)
         if not nn:
             return (
@@ -185,7 +186,9 @@ class CompileTiming:
             frame_ms(1, k)
             + master_pulse_ms
             + frame_ms(packed_bytes(rx), k)
-            + self.statements(TURNAROUND_STATEMENTS + NN_STORE_STATEMENTS + rx + GAP_STATEMENTS),
+            + self.statements(
+                TURNAROUND_STATEMENTS + NN_STORE_STATEMENTS + packed_bytes(rx) + rx + GAP_STATEMENTS
+            ),
         )
 
     def master_gap_ms(self, tx: int, rx: int, k: ServeConstants, *, nn: bool) -> float:

@@ -84,6 +84,8 @@ NN = ServeConstants(
     states_wait=15,  # 6 ms per byte: a byte (2.08 ms) at the 2 ms pace, so a lost byte costs a try
     pace_ticks=30,  # 2 x DeadTicks: a live upstream is heard well before, a dead lead is not
 )
+SERIN_UNIT_MS = 0.4
+"""The unit of a BS2sx SERIN timeout: 0.4 ms (1 ms on the BS2; bs2sx.md, manual p. 394)."""
 NN_TICK_MS = 100
 """NN: one silent tick is 100 ms of a sum of lower bounds of the tries."""
 CA_QUIET_UNIT_MS = 0.8
@@ -115,8 +117,8 @@ def ca_quiet(k: ServeConstants | None = None) -> CaQuiet:
     unit = CA_QUIET_UNIT_MS / CLOCK_MARGIN
     return CaQuiet(
         tick=CA_TICK_QUIET,
-        ask=int((2 * byte_ms() + k.pace_ms + k.reply_wait * 0.4) / unit),
-        listen=int(k.listen * 0.4 / unit),
+        ask=int((2 * byte_ms() + k.pace_ms + k.reply_wait * SERIN_UNIT_MS) / unit),
+        listen=int(k.listen * SERIN_UNIT_MS / unit),
         heard=int(byte_ms() / unit),
         ask_heard=int((3 * byte_ms() + k.pace_ms) / unit),
     )
@@ -225,36 +227,53 @@ def parse(data: bytes, *, nn: bool) -> Frame | None:
 # ---- NN: the packed states after READY(h) ----------------------------------------------------
 
 
+MAX_PACKED_STATES = 5
+"""A packed frame's check detects every pair of bit errors in two bytes up to 3 bytes (5
+states, legs of 6 modules): 12 error patterns in 15 non-zero checks (:func:`pack_states`)."""
+
+
 def packed_length(states: int) -> int:
     """Bytes of ``states`` packed states: two to a byte, and the check nibble."""
     return states // 2 + 1
 
 
+def _mix(check: int) -> int:
+    """M(x) = x XOR (x rotated right by one), on the 4-bit check."""
+    return (check ^ check >> 1 ^ check << 3) & 15
+
+
+def _fold(data: bytes) -> int:
+    """The check of a packed frame: ck = M(ck) ^ (hi ^ lo), byte by byte from ck = 0."""
+    check = 0
+    for b in data:
+        check = _mix(check) ^ (b >> 4) ^ (b & 15)
+    return check
+
+
 def pack_states(states: tuple[int, ...] | list[int], h: int) -> bytes:
     """The master's answer to READY(h): S^(h+1) of modules 0..j, two to a byte (byte k =
-    s(2k) << 4 + s(2k+1)); the last byte's high nibble is c = s(0) ^ .. ^ s(n-1) ^ h, its low
-    nibble the odd state or 0. So the payload's nibbles XOR to h: a single-bit error changes
-    that XOR, and states of another transition fail unless h's bits are flipped as well."""
+    s(2k) << 4 + s(2k+1)); the last byte's high nibble is the check, its low nibble the odd
+    state or 0. The check makes the frame fold (:func:`_fold`) to h. A bit flipped in byte k of
+    K changes the fold by M^(K-1-k) of one bit: one bit, two adjacent bits or two bits two
+    apart (K <= 3), never 0 and never the same for two bytes, so every single-bit error and
+    every pair of them in two bytes is detected, and a frame of another h fails
+    (protocol/link.md §4.6)."""
     if not states or any(not 0 <= s <= 15 for s in states):
         raise ValueError(f"states {states} are not one or more of 0..15")
-    n, check = len(states), h % TRANSITION_MOD
-    for s in states:
-        check ^= s
-    out = [states[2 * k] << 4 | states[2 * k + 1] for k in range(n // 2)]
-    out.append(check << 4 | (states[-1] if n % 2 else 0))
-    return bytes(out)
+    n = len(states)
+    if n > MAX_PACKED_STATES:
+        raise ValueError(f"{n} states: a packed frame carries at most {MAX_PACKED_STATES}")
+    odd = states[-1] if n % 2 else 0
+    pairs = bytes(states[2 * k] << 4 | states[2 * k + 1] for k in range(n // 2))
+    check = _mix(_fold(pairs)) ^ odd ^ (h % TRANSITION_MOD)
+    return pairs + bytes([check << 4 | odd])
 
 
 def unpack_states(data: bytes, h: int, states: int) -> tuple[int, ...] | None:
     """The ``states`` states of a packed frame received after READY(h), or None if its length
-    or its check is wrong (the program checks the nibble XOR only: a wrong length is a
-    StatesWait timeout)."""
-    if len(data) != packed_length(states):
-        return None
-    x = 0
-    for b in data:
-        x ^= b
-    if (x >> 4) ^ (x & 15) != h % TRANSITION_MOD:
+    or its check is wrong (the program checks the fold only: a wrong length is a StatesWait
+    timeout)."""
+    if len(data) != packed_length(states) or _fold(data) != h % TRANSITION_MOD:
         return None
     nibbles = [v for b in data[:-1] for v in (b >> 4, b & 15)]
     if states % 2:

@@ -49,19 +49,32 @@ def frame(kind: str, t: int, states: list[int], *, nn: bool) -> bytes:
     return bytes([header, *(state_byte(s, code) for s in states)])
 
 
+def _rotr(x: int) -> int:
+    return (x >> 1 | (x & 1) << 3) & 0xF
+
+
+def fold(data: bytes) -> int:
+    """§4.6: a packed frame's check value; f = 0, then per byte f = f ^ rotr(f) ^ hi ^ lo."""
+    f = 0
+    for b in data:
+        f = f ^ _rotr(f) ^ (b >> 4) ^ (b & 0xF)
+    return f
+
+
 def packed(states: list[int], h: int) -> bytes:
-    """§3 (NN): the states after READY(h), two to a byte, high nibble first; the last byte's
-    high nibble is the XOR of the states and h, its low nibble the odd state or 0."""
-    check = h % 8
-    for s in states:
-        check ^= s
+    """§4.6 (NN): the states after READY(h), two to a byte, high nibble first; the last byte's
+    low nibble is the odd state or 0, its high nibble the one value that makes the frame fold
+    to h (found by trying all 16)."""
     pairs = [states[k] << 4 | states[k + 1] for k in range(0, len(states) - 1, 2)]
-    return bytes([*pairs, check << 4 | (states[-1] if len(states) % 2 else 0)])
+    odd = states[-1] if len(states) % 2 else 0
+    (check,) = [c for c in range(16) if fold(bytes([*pairs, c << 4 | odd])) == h % 8]
+    return bytes([*pairs, check << 4 | odd])
 
 
-def _flip(data: bytes, bit: int) -> str:
+def _flips(data: bytes, *bits: int) -> str:
     out = bytearray(data)
-    out[bit // 8] ^= 1 << (bit % 8)
+    for bit in bits:
+        out[bit // 8] ^= 1 << (bit % 8)
     return _hex(bytes(out))
 
 
@@ -183,18 +196,27 @@ def frames() -> dict[str, object]:
     packs = [([1, 4, 9, 15, 0], 3), ([4, 11, 7], 6), ([4, 11], 6), ([9], 0), ([0, 0, 0, 0], 7)]
     states_bad = [  # every single-bit error of one packed frame, and a frame of another h
         {"why": f"packed [1, 4, 9, 15, 0] after READY(3), bit {b} flipped", "family": "nn",
-         "h": 3, "states": 5, "bytes": _flip(packed([1, 4, 9, 15, 0], 3), b)}
+         "h": 3, "states": 5, "bytes": _flips(packed([1, 4, 9, 15, 0], 3), b)}
         for b in range(24)
     ] + [
         {"why": "packed [4, 11, 7] of READY(6) taken after READY(5)", "family": "nn", "h": 5,
          "states": 3, "bytes": _hex(packed([4, 11, 7], 6))},
         {"why": "packed [4, 11, 7] with its last byte lost", "family": "nn", "h": 6,
          "states": 3, "bytes": _hex(packed([4, 11, 7], 6)[:1])},
+    ] + [
+        {"why": f"packed [1, 4, 9, 15, 0] after READY(3), bit {b} of byte {i} and of byte {j} "
+         f"flipped", "family": "nn", "h": 3, "states": 5,
+         "bytes": _flips(packed([1, 4, 9, 15, 0], 3), 8 * i + b, 8 * j + b)}
+        for i, j in ((0, 1), (0, 2), (1, 2)) for b in range(8)
+    ] + [
+        {"why": "packed [2, 2] after READY(1) (22 10 with the XOR check of format 3), bit 6 of "
+         "byte 0 and bit 2 of byte 1 flipped: the XOR check passed it", "family": "nn", "h": 1,
+         "states": 2, "bytes": _flips(packed([2, 2], 1), 6, 10)},
     ]  # fmt: skip
     bad_welcome = frame("WELCOME", 4, [3, 9, 8, 2, 1, 5], nn=False)
     assert bad_welcome.hex(" ").upper() == rejected[6][3]
     return {
-        "format": "bstool.linkvectors/3",
+        "format": "bstool.linkvectors/4",
         "spec": "protocol/link.md",
         "headers": {**HEADERS, "JOIN": JOIN},
         "frames": [
