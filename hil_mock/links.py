@@ -13,7 +13,7 @@ import numpy as np
 from bstool.buildfile import Build
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
-from hil_mock.stamp import Stamp
+from hil_mock.stamp import NEVER, Stamp
 
 Wires = dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]]
 # A WELCOME's header, $D8 + t. On a CA link no other byte is $D8..$DF: a payload byte is
@@ -22,18 +22,23 @@ Wires = dict[tuple[ModuleId, int], list[tuple[ModuleId, int]]]
 WELCOME = 0xD8
 
 
-def wires(build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]) -> Wires:
-    """(module, pin) -> the (module, pin) ends it is wired to, without the ``cut`` wires."""
-    ends = [(w.master, w.master_pin, w.slave, w.slave_pin) for w in build.manifest.links]
-    pairs = list(cut)
-    cuts = {frozenset(c) for c in pairs}
-    wired = {frozenset((a, b)) for a, _, b, _ in ends}
-    for a, b in pairs:
+def check_cuts(build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]) -> None:
+    """Refuse a cut of two modules no wire joins."""
+    wired = {frozenset((w.master, w.slave)) for w in build.manifest.links}
+    for a, b in cut:
         if frozenset((a, b)) not in wired:
             raise InputError(
                 f"cannot cut {a}-{b}: no wire joins these modules in this build",
                 hint="WIRING.md lists the wires",
             )
+
+
+def wires(build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]) -> Wires:
+    """(module, pin) -> the (module, pin) ends it is wired to, without the ``cut`` wires."""
+    ends = [(w.master, w.master_pin, w.slave, w.slave_pin) for w in build.manifest.links]
+    pairs = list(cut)
+    check_cuts(build, pairs)
+    cuts = {frozenset(c) for c in pairs}
     out: Wires = {}
     for a, pin_a, b, pin_b in ends:
         if frozenset((a, b)) not in cuts:
@@ -56,6 +61,8 @@ class Links:
     # (sender, receiver, start ns) of every WELCOME header sent, hit by noise or not: a CA
     # sender counts its neighbour alive again once it sent it (hil_mock.outage)
     welcomes: list[tuple[ModuleId, ModuleId, int]]
+    # wires cut during the run: {the two modules: the virtual ns from which no byte crosses}
+    cut_at_ns: dict[frozenset[ModuleId], int]
 
     def _route(self, mid: ModuleId, pin: int, value: int, start_ns: int, mode: int) -> None:
         if value & 0xF8 == WELCOME:
@@ -69,6 +76,8 @@ class Links:
             self.noise_events["flipped"] += 1
         tx_bit_ns = self.stamps[mid].clock.bit_ns(mode)  # the sender's own bit time
         for peer, peer_pin in self.wires.get((mid, pin), ()):
+            if self.cut_at_ns and start_ns >= self.cut_at_ns.get(frozenset((mid, peer)), NEVER):
+                continue  # the wire came loose
             stamp = self.stamps.get(peer)
             if stamp is not None:
                 stamp.deliver_byte(peer_pin, value, start_ns, mode, tx_bit_ns)

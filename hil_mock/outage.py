@@ -34,6 +34,7 @@ import numpy as np
 
 from bstool.controllers import Controller
 from bstool.moduleid import ModuleId
+from bstool.wire import link
 from hil_mock.twin_result import NS, OFF_STATE
 
 RobotTwin = Any  # a hil_mock.robot.RobotTwin after its run (it imports this module's users)
@@ -217,6 +218,21 @@ def _transition_at(twin: RobotTwin, mid: ModuleId, when_ns: int) -> int:
     return max((i for i, t in enumerate(times) if 0 <= t <= when_ns), default=0)
 
 
+def nn_cut_failures(twin: RobotTwin) -> dict[ModuleId, int]:
+    """NN: a chain wire j - (j + 1) cut in a running robot (``cut_at``) is j + 1 failing at the
+    last transition it took before the cut: it hears nobody upstream, holds that state (its
+    next state follows only from the held upstream states) and j's bypass feeds j + 2 with it
+    held. T: the last transition it showed before it could pace on its own (PaceTicks of
+    silence after the cut). A cut bypass changes nothing."""
+    pace_ns = link.NN.pace_ticks * link.NN_TICK_MS * 1_000_000 if link.NN.pace_ticks else 0
+    out: dict[ModuleId, int] = {}
+    for pair, at_ns in twin.cut_at_ns.items():
+        a, b = sorted(pair)
+        if a.leg == b.leg and b.module - a.module == 1:
+            out[b] = _transition_at(twin, b, at_ns + pace_ns)
+    return out
+
+
 def readers(twin: RobotTwin, mid: ModuleId) -> list[ModuleId]:
     """The modules wired to ``mid`` that read its state (NN: only downstream ones)."""
     peers = {p for (m, _), ends in twin.wires.items() if m == mid for p, _ in ends}
@@ -370,6 +386,7 @@ __all__ = [
     "compared_record",
     "compared_states",
     "cut_reference",
+    "nn_cut_failures",
     "outage_reference",
     "outages",
     "readers",

@@ -22,7 +22,7 @@ from bstool.timingfile import TimingModel
 from bstool.wire import announce
 from hil_mock.body import LIMP_AFTER_S, Body, ServoTrack
 from hil_mock.faults import Faults, dying_modules, failed_modules
-from hil_mock.links import Links, wires
+from hil_mock.links import Links, check_cuts, wires
 from hil_mock.perturb import Perturbation, PerturbRun
 from hil_mock.schedule import CHUNK_STEPS, Scheduler, advance_globally
 from hil_mock.stamp import Stamp, StampIO
@@ -82,8 +82,9 @@ class RobotTwin(Body, Links, Faults, Scheduler):
     with ``limp_failed`` it goes limp instead. ``die`` maps modules to the transition T at which
     they die during the run: the stamp stops for good once it has shown S^T on its servo and sent
     S^T to its neighbours (:meth:`_dies_at_pulse`, docs/twin.md); its servo then holds S^T (limp
-    with ``limp_failed``). ``cut`` removes links. ``noise`` is the chance that
-    a byte on a link is hit (half of the hits drop it, half flip one bit), drawn from ``seed``.
+    with ``limp_failed``). ``cut`` removes links; ``cut_at`` cuts them at a virtual time (s:
+    no byte starting then or later crosses). ``noise`` is the chance that a byte on a link is
+    hit (half of the hits drop it, half flip one bit), drawn from ``seed``.
     ``timing``: the stamps' nominal timing model (a measured ``bstool.timing/1`` file's;
     default: the estimate), under ``perturb``'s per-module factors.
     """
@@ -97,6 +98,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         die: Mapping[ModuleId, int] | Mapping[str, int] | None = None,
         limp_failed: bool = False,
         cut: Iterable[tuple[ModuleId, ModuleId]] = (),
+        cut_at: Mapping[tuple[ModuleId, ModuleId], float] | None = None,
         noise: float = 0.0,
         seed: int = 0,
         physics: bool = True,
@@ -122,6 +124,8 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         self._killed = False
         self._nn = build.manifest.controller.model.startswith("nn")
         self.wires = wires(build, cut)
+        check_cuts(build, cut_at or {})
+        self.cut_at_ns = {frozenset(ab): round(s * NS) for ab, s in (cut_at or {}).items()}
         self.stamps: dict[ModuleId, Stamp] = {}
         self.records: dict[ModuleId, ModuleRecord] = {m: ModuleRecord() for m in self.order}
         self.servos: dict[ModuleId, ServoTrack] = {}

@@ -19,7 +19,7 @@ from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from bstool.timingfile import TimingModel
 from hil_mock.check import TwinCheck, check, reference_simulator
-from hil_mock.outage import Outage, cut_reference, outage_reference, outages
+from hil_mock.outage import Outage, cut_reference, nn_cut_failures, outage_reference, outages
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import CHUNK_STEPS, RobotTwin
 from hil_mock.schedule_extract import Recorder, stamp_timed_simulator
@@ -37,6 +37,7 @@ class TwinOptions:
     die: Mapping[ModuleId, int] = field(default_factory=dict)
     limp_failed: bool = False
     cut: Sequence[tuple[ModuleId, ModuleId]] = ()
+    cut_at: Mapping[tuple[ModuleId, ModuleId], float] = field(default_factory=dict)  # s
     noise: float = 0.0
     seed: int = 0
     physics: bool = True
@@ -105,6 +106,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
             die=options.die,
             limp_failed=options.limp_failed,
             cut=options.cut,
+            cut_at=options.cut_at,
             noise=options.noise,
             seed=options.seed,
             physics=options.physics,
@@ -118,7 +120,8 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         if fleet is not None:
             fleet.close()
     outs = outages(twin)
-    reference = _reference(ctrl, options, outs) if ctrl is not None else None
+    cut_dies = nn_cut_failures(twin) if ctrl is not None and twin._nn else {}
+    reference = _reference(ctrl, options, outs, cut_dies) if ctrl is not None else None
     sim_distance = None
     stamp_path = None
     if reference is not None and options.physics:
@@ -140,6 +143,16 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
     report.notes += outage_notes(outs)
     if options.cut and reference is not None:
         report.notes.append(_cut_note(ctrl, options, outs))
+    if options.cut_at and reference is not None:
+        timed = ", ".join(f"{a.label}-{b.label} at {s:g} s" for (a, b), s in options.cut_at.items())
+        how = (
+            "its downstream end compared as dying at the last transition it took ("
+            + ", ".join(f"--die {m.label}@{t}" for m, t in cut_dies.items())
+            + ")"
+            if cut_dies
+            else "compared with the reference without the cut (none describes it here)"
+        )
+        report.notes.append(f'cut {timed}: {how}; docs/twin.md "A wire cut in a running robot"')
     if limited:
         report.notes.append(
             "modules after two neighbouring dead NN modules ("
@@ -161,15 +174,19 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
     )
 
 
-def _reference(ctrl: Controller, options: TwinOptions, outs: list[Outage]) -> np.ndarray:
+def _reference(
+    ctrl: Controller, options: TwinOptions, outs: list[Outage], cut_dies: Mapping[ModuleId, int]
+) -> np.ndarray:
     """``bstool states`` with the run's failures and long outages; a CA run whose only fault is
-    ``--cut`` is compared with each end reading the other's R^0 (:func:`cut_reference`)."""
+    ``--cut`` is compared with each end reading the other's R^0 (:func:`cut_reference`); an NN
+    chain wire cut in a running robot as its downstream end dying (:func:`nn_cut_failures`)."""
     from bstool.controllers import NN_MODELS
 
     faults = options.failed or options.die or any(o.long for o in outs)
     if options.cut and ctrl.model not in NN_MODELS and not faults:
         return cut_reference(ctrl, options.transitions, list(options.cut))
-    return outage_reference(ctrl, options.transitions, outs, options.failed, options.die)
+    die = {**cut_dies, **options.die}
+    return outage_reference(ctrl, options.transitions, outs, options.failed, die)
 
 
 def _cut_note(ctrl: Controller | None, options: TwinOptions, outs: list[Outage]) -> str:

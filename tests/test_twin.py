@@ -165,6 +165,10 @@ def test_twin_cli_video_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "bad --cut" in capsys.readouterr().err
     assert main(["twin", str(build), "--cut", "0.1-0.1", "--no-physics", "-T", "1"]) == 2
     assert "no wire joins" in capsys.readouterr().err
+    assert main(["twin", str(build), "--cut", "0.0-0.1@soon", "--no-physics", "-T", "1"]) == 2
+    assert "A-B@S" in capsys.readouterr().err
+    assert main(["twin", str(build), "--cut", "0.1-0.1@2", "--no-physics", "-T", "1"]) == 2
+    assert "no wire joins" in capsys.readouterr().err
 
 
 def test_twin_refuses_a_build_changed_after_compile(

@@ -43,8 +43,10 @@ if TYPE_CHECKING:
 @click.option(
     "--cut",
     multiple=True,
-    metavar="A-B",
-    help="Cut the link between modules A and B (e.g. 0.1-0.2); repeatable.",
+    metavar="A-B[@S]",
+    help="Cut the link between modules A and B (e.g. 0.1-0.2) from power-up, or from S "
+    "seconds of virtual time (0.1-0.2@3.5: a wire coming loose in a running robot); "
+    "repeatable.",
 )
 @click.option(
     "--link-noise",
@@ -130,7 +132,9 @@ def command(
     b = buildfile.load(build)  # refuses a build whose images differ from the manifest
     fail_ids = [parse_module(f, b.legs, b.modules) for f in failed]
     die_at = dict(parse_failure_time(d, b.legs, b.modules) for d in die)
-    cuts = [_parse_cut(c, b.legs, b.modules) for c in cut]
+    parsed = [_parse_cut(c, b.legs, b.modules) for c in cut]
+    cuts = [(x, y) for x, y, at in parsed if at is None]
+    cut_at = {(x, y): at for x, y, at in parsed if at is not None}
     with tqdm(total=transitions + 1, unit="transition", disable=quiet or as_json or None,
               desc="twin", file=sys.stderr) as bar:  # fmt: skip
         options = TwinOptions(
@@ -139,6 +143,7 @@ def command(
             die=die_at,
             limp_failed=limp_failed,
             cut=cuts,
+            cut_at=cut_at,
             noise=link_noise,
             seed=seed,
             physics=not no_physics,
@@ -173,11 +178,22 @@ def _controller(given: str | None) -> Controller | None:
     return load_controller(given) if given else None
 
 
-def _parse_cut(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId]:
-    parts = text.split("-")
-    if len(parts) != 2:
-        raise InputError(f"bad --cut {text!r}: expected A-B, e.g. 0.1-0.2")
-    return parse_module(parts[0], legs, modules), parse_module(parts[1], legs, modules)
+def _parse_cut(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId, float | None]:
+    """``A-B`` (from power-up) or ``A-B@S`` (from S seconds of virtual time)."""
+    pair, sep, when = text.partition("@")
+    parts = pair.split("-")
+    at: float | None = None
+    if sep:
+        try:
+            at = float(when)
+        except ValueError:
+            at = -1.0
+    if len(parts) != 2 or (at is not None and not 0.0 <= at < 1e6):
+        raise InputError(
+            f"bad --cut {text!r}: expected A-B or A-B@S, e.g. 0.1-0.2 or 0.1-0.2@3.5 "
+            "(S: seconds of virtual time, >= 0)"
+        )
+    return parse_module(parts[0], legs, modules), parse_module(parts[1], legs, modules), at
 
 
 def _print(report: TwinCheck, result: TwinResult) -> None:
