@@ -14,10 +14,12 @@ Prints, for a population of --pop candidates (default 100) of the default robot:
   physics of the same population in the same rounds, their ratio, the seconds of physics each
   run needs (the twin's start-up and period against a 0.475 s settle and period), the
   schedule model's fitting time (one compile + twin run per representative, cached) and its
-  schedule computation rate (schedules/s).
+  schedule computation rate (schedules/s);
+* the same population scored on the mean of --schedule-builds builds (``evolve
+  --schedule-builds``; each build one more physics run per candidate).
 
 Usage: python bench/evaluate.py [--pop 100] [--transitions 30] [--ga-gens 40] [--rounds 2]
-       [--stamp-gens 4] [--stamp-models nnsin,nnsig,ca1d]
+       [--stamp-gens 4] [--stamp-models nnsin,nnsig,ca1d] [--schedule-builds 3]
 """
 
 from __future__ import annotations
@@ -139,6 +141,12 @@ def main() -> None:
         default="nnsin,nnsig,ca1d",
         help="models of the stamp-timed GA runs (comma-separated; '' = none)",
     )
+    ap.add_argument(
+        "--schedule-builds",
+        type=int,
+        default=3,
+        help="also the population on an ensemble of K builds (evolve --schedule-builds; 0: no)",
+    )
     args = ap.parse_args()
 
     problem = Problem("nnsin", transitions=args.transitions)
@@ -181,6 +189,16 @@ def main() -> None:
         print(
             f"{workers} worker(s): stamp-timed {timed:7.2f} evaluations/s   plain {plain:7.2f}/s"
             f"   ratio {timed / plain:.3f}"
+        )
+    if args.schedule_builds:  # a candidate is K physics runs: expect about 1/K of the above
+        ensemble = schedule_model("nnsin", builds=args.schedule_builds)
+        plain = timed = 0.0
+        for _ in range(args.rounds):
+            plain = max(plain, stack_rate(problem, bits, 1))
+            timed = max(timed, stamp_rate(problem, bits, 1, ensemble))
+        print(
+            f"1 worker, --schedule-builds {args.schedule_builds}: stamp-timed {timed:7.2f} "
+            f"evaluations/s   plain {plain:7.2f}/s   ratio {timed / plain:.3f}"
         )
 
     for model in filter(None, args.stamp_models.split(",")):  # "" = no GA runs

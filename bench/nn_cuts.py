@@ -18,7 +18,7 @@ import numpy as np
 
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
-from hil_mock.outage import nn_cut_failures
+from hil_mock.outage import nn_cut_reference
 from hil_mock.robot import RobotTwin, load_build
 
 T = 16
@@ -28,8 +28,7 @@ def run(root: str, model: str, a: ModuleId, b: ModuleId, at: float) -> dict[str,
     build = load_build(f"{root}/{model}")
     twin = RobotTwin(build, physics=False, cut_at={(a, b): at})
     result = twin.run(T, timeout_s=60.0)
-    dies = nn_cut_failures(twin)
-    want = load_controller(build.controller_file).states(T, failed_at=dies)
+    dies, want = nn_cut_reference(twin, load_controller(build.controller_file), T)
     got = result.state_array(build.legs, build.modules, T)
     exact = int(np.all(got == want, axis=0).sum())
     legs, mods = np.nonzero(np.any(got != want, axis=0))

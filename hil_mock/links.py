@@ -34,11 +34,10 @@ def check_cuts(build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]) -> None:
 
 
 def wires(build: Build, cut: Iterable[tuple[ModuleId, ModuleId]]) -> Wires:
-    """(module, pin) -> the (module, pin) ends it is wired to, without the ``cut`` wires."""
+    """(module, pin) -> the (module, pin) ends it is wired to, without the ``cut`` wires
+    (checked with :func:`check_cuts` by the caller)."""
     ends = [(w.master, w.master_pin, w.slave, w.slave_pin) for w in build.manifest.links]
-    pairs = list(cut)
-    check_cuts(build, pairs)
-    cuts = {frozenset(c) for c in pairs}
+    cuts = {frozenset(c) for c in cut}
     out: Wires = {}
     for a, pin_a, b, pin_b in ends:
         if frozenset((a, b)) not in cuts:
@@ -75,8 +74,9 @@ class Links:
             value ^= 1 << int(rng.integers(8))  # one bit flipped on the wire
             self.noise_events["flipped"] += 1
         tx_bit_ns = self.stamps[mid].clock.bit_ns(mode)  # the sender's own bit time
+        cut_at = self.cut_at_ns
         for peer, peer_pin in self.wires.get((mid, pin), ()):
-            if self.cut_at_ns and start_ns >= self.cut_at_ns.get(frozenset((mid, peer)), NEVER):
+            if cut_at and start_ns >= cut_at.get(frozenset((mid, peer)), NEVER):
                 continue  # the wire came loose
             stamp = self.stamps.get(peer)
             if stamp is not None:

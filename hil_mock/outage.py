@@ -233,6 +233,15 @@ def nn_cut_failures(twin: RobotTwin) -> dict[ModuleId, int]:
     return out
 
 
+def nn_cut_reference(
+    twin: RobotTwin, ctrl: Controller, transitions: int
+) -> tuple[dict[ModuleId, int], np.ndarray]:
+    """After a run with NN chain wires cut (``cut_at``): the downstream ends as failing
+    modules (:func:`nn_cut_failures`) and the reference R^0..R^T they make."""
+    dies = nn_cut_failures(twin)
+    return dies, ctrl.states(transitions, failed_at=dies)
+
+
 def readers(twin: RobotTwin, mid: ModuleId) -> list[ModuleId]:
     """The modules wired to ``mid`` that read its state (NN: only downstream ones)."""
     peers = {p for (m, _), ends in twin.wires.items() if m == mid for p, _ in ends}

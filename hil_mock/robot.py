@@ -123,8 +123,9 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         self.died: dict[ModuleId, int] = {}  # module -> virtual ns when its stamp stopped
         self._killed = False
         self._nn = build.manifest.controller.model.startswith("nn")
+        cut = list(cut)
+        check_cuts(build, [*cut, *(cut_at or {})])
         self.wires = wires(build, cut)
-        check_cuts(build, cut_at or {})
         self.cut_at_ns = {frozenset(ab): round(s * NS) for ab, s in (cut_at or {}).items()}
         self.stamps: dict[ModuleId, Stamp] = {}
         self.records: dict[ModuleId, ModuleRecord] = {m: ModuleRecord() for m in self.order}

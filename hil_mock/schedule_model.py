@@ -31,7 +31,7 @@ from bstool.controllers import Controller
 from bstool.errors import BuildError
 from bstool.evolve.problem import Problem
 from bstool.robot import state_to_angle
-from bstool.sim.timed import ScheduleModel
+from bstool.sim.timed import ScheduleEnsemble, ScheduleModel
 from bstool.timingfile import DEFAULT as DEFAULT_TIMING
 from bstool.timingfile import TimingModel
 from hil_mock.robot import RobotTwin
@@ -110,31 +110,25 @@ def fit(instants: list[np.ndarray], reference: int, states: int) -> ScheduleMode
     return ScheduleModel(grid, c[:, 0], base, offset, period, reference, np.asarray(angles))
 
 
-@functools.lru_cache(maxsize=16)
-def _cached(
+@functools.lru_cache(maxsize=64)
+def _instants(
     model: str,
     period: float | None,
     legs: int,
     modules: int,
     transitions: int,
-    representatives: int,
+    seed: int,
     key: str,
     timing: TimingModel | None,
-) -> ScheduleModel:
-    instants = []
-    reference = 0
-    states = 16
+) -> tuple[np.ndarray, int, int]:
+    """One representative build's instants (random controller ``seed``), its reference
+    actuator and the model's state count."""
+    ctrl = random_controller(model, seed, legs=legs, modules=modules)
     with tempfile.TemporaryDirectory(prefix="bstool-schedule-") as tmp:
-        for seed in range(representatives):
-            ctrl = random_controller(model, seed, legs=legs, modules=modules)
-            states = ctrl.k
-            out = Path(tmp) / f"b{seed}"
-            # in memory: no controller file
-            res = compile_loaded(ctrl, out, period=period, timing=timing)
-            build = buildfile.Build(out, res.manifest)
-            c, reference = transition_instants(build, transitions, timing)
-            instants.append(c)
-    return fit(instants, reference, states)
+        out = Path(tmp) / f"b{seed}"
+        res = compile_loaded(ctrl, out, period=period, timing=timing)  # in memory: no file
+        c, reference = transition_instants(buildfile.Build(out, res.manifest), transitions, timing)
+    return c, reference, ctrl.k
 
 
 def schedule_model(
@@ -146,12 +140,25 @@ def schedule_model(
     transitions: int = FIT_TRANSITIONS,
     representatives: int = REPRESENTATIVES,
     timing: TimingModel | None = None,
-) -> ScheduleModel:
+    builds: int = 0,
+) -> ScheduleModel | ScheduleEnsemble:
     """The fitted schedule model of ``model`` at ``period`` (None: compile's default) for
     stamps with ``timing`` (a measured ``bstool.timing/1`` model: the representatives are
-    compiled and run with it; None: the estimate); about a second per representative the
-    first time, then from the cache."""
+    compiled and run with it; None: the estimate); about two seconds per representative
+    build the first time, then from the cache.
+
+    ``builds`` = 0: one model, the mean of ``representatives`` builds (how runs before the
+    ensemble were evolved: their fitness replays with it); ``builds`` = K >= 1: a
+    :class:`ScheduleEnsemble` of K builds each fitted alone (``bstool evolve --stamp-timed``
+    since 2026-12-03, ``--schedule-builds``)."""
     key = f"{__version__}:{templates_hash()}:{timing_digest(timing)}"
     if timing is not None and timing == DEFAULT_TIMING:
         timing = None
-    return _cached(model, period, legs, modules, transitions, representatives, key, timing)
+    count = builds or representatives
+    runs = [
+        _instants(model, period, legs, modules, transitions, seed, key, timing)
+        for seed in range(count)
+    ]
+    if not builds:
+        return fit([c for c, _, _ in runs], runs[0][1], runs[0][2])
+    return ScheduleEnsemble(tuple(fit([c], ref, k) for c, ref, k in runs))

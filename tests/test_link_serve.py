@@ -18,7 +18,7 @@ from bstool.buildfile import Build
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
 from bstool.wire import link
-from hil_mock.outage import nn_cut_failures
+from hil_mock.outage import nn_cut_reference
 from hil_mock.perturb import Perturbation, Reset
 from hil_mock.robot import RobotTwin, load_build
 from hil_mock.twin_result import TwinResult
@@ -214,9 +214,8 @@ NN_CUTS_IN_RUN = [  # (model, cut, at s): a middle chain wire, the last one
 def _cut_in_run(build: Build, cut: tuple[ModuleId, ModuleId], at: float) -> tuple[bool, int]:
     twin = RobotTwin(build, physics=False, cut_at={cut: at})
     result = twin.run(12, timeout_s=40.0)
-    dies = nn_cut_failures(twin)
+    dies, want = nn_cut_reference(twin, load_controller(build.controller_file), 12)
     assert list(dies) == [cut[1]] and not result.stalled
-    want = load_controller(build.controller_file).states(12, failed_at=dies)
     return bool(np.array_equal(result.state_array(build.legs, build.modules, 12), want)), dies[
         cut[1]
     ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -117,13 +118,29 @@ def test_hold_failed_keeps_r0() -> None:
     assert (held[:, mask] == states[:, mask]).all()
 
 
+def _no_library(name: str) -> None:
+    raise OSError(f"{name}: cannot open shared object file")
+
+
 def test_headless_gl_choice(monkeypatch: pytest.MonkeyPatch) -> None:
     from bstool.sim.gl import configure_headless_gl
 
     for var in ("MUJOCO_GL", "PYOPENGL_PLATFORM", "DISPLAY", "WAYLAND_DISPLAY"):
         monkeypatch.setenv(var, "x")  # records the original value, restored after the test
         monkeypatch.delenv(var)
+    import ctypes
+    import ctypes.util
+
+    find = ctypes.util.find_library
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: "libOSMesa.so.8")
     assert configure_headless_gl() == "osmesa"  # no display, nothing configured: OSMesa
+    monkeypatch.delenv("MUJOCO_GL")
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: None)
+    monkeypatch.setattr(ctypes, "CDLL", _no_library)
+    with pytest.raises(InputError, match="OSMesa") as missing:  # no traceback from ctypes
+        configure_headless_gl()
+    assert "libosmesa6" in (missing.value.hint or "") and "MUJOCO_GL" not in os.environ
+    monkeypatch.setattr(ctypes.util, "find_library", find)
     monkeypatch.setenv("MUJOCO_GL", "egl")
     assert configure_headless_gl() == "egl"  # an explicit choice is kept
     monkeypatch.delenv("MUJOCO_GL")

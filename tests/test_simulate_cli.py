@@ -76,7 +76,7 @@ def test_builtin_evolved_controllers_replay_their_fitness(
     code, out, _ = run_cli(["simulate", "--model", model, "--stamp-timed", "--json", "-q"], capsys)
     result = json.loads(out)
     assert code == 0
-    assert result["distance"] == data["fitness"], (
+    assert result["fitness"] == data["fitness"], (
         "the schedule model moved (templates or timing model changed?): re-evolve or "
         "re-measure the shipped controllers, docs/DEVELOPING.md"
     )
@@ -159,6 +159,7 @@ def test_stamp_timed_refuses_a_states_file(
         (["--stamp-timed", "--fail", "0.1"], "--stamp-timed does not combine with --fail"),
         (["--stamp-timed", "--build", "nowhere"], "--stamp-timed does not combine with --build"),
         (["--timing", "t.json"], "--timing needs --build or --stamp-timed"),
+        (["--other-builds", "2"], "--other-builds only applies with --stamp-timed"),
     ],
 )
 def test_stamp_timed_misuse_is_a_clear_error(
@@ -166,6 +167,29 @@ def test_stamp_timed_misuse_is_a_clear_error(
 ) -> None:
     code, _, err = run_cli(["simulate", *args], capsys)
     assert code == 2 and message in err and "Traceback" not in err
+
+
+def test_other_builds_are_the_ones_after_those_it_was_scored_on(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """--other-builds N: the controller on N more builds, each alone; a run scored on one
+    model of builds 0 and 1 (the shipped ones) gets builds 2.. (none it was scored on)."""
+    from bstool.builtin import builtin_controller
+    from bstool.controllers import load_controller
+    from bstool.robot import RobotSpec
+    from hil_mock.schedule_model import schedule_model
+
+    args = ["simulate", "--model", "ca1d", "--stamp-timed", "-T", "2", "-q"]
+    code, out, err = run_cli([*args, "--other-builds", "1", "--json"], capsys)
+    assert code == 0, err
+    got = json.loads(out)
+    ctrl = load_controller(builtin_controller("ca1d"))
+    third = schedule_model("ca1d", builds=3).variants[2]
+    want = Simulator(RobotSpec()).run_schedule(third.schedule(ctrl.states(2))).distance
+    assert got["other_build_distances"] == [want]
+    assert got["fitness"] == got["distance"] != want  # one model: the fitness is its distance
+    code, out, _ = run_cli([*args, "--other-builds", "1"], capsys)
+    assert code == 0 and "on 1 builds it was not scored on" in out
 
 
 def test_stamp_timed_period_defaults_to_the_evolved_one() -> None:

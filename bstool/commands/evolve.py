@@ -103,6 +103,13 @@ _D = opt.default
     " its sha256 is recorded with the run.",
 )
 @click.option(
+    "--schedule-builds",
+    type=click.IntRange(1, opt.MAX_BUILDS),
+    help="--stamp-timed: play each candidate on K builds of random controllers and score the"
+    " mean distance (K physics runs per candidate); closer to what a new build walks for the"
+    " 2-D CA models [default: one model averaged over two builds]",
+)
+@click.option(
     "--robust",
     type=click.Choice(ROBUST_MODES),
     is_flag=False,
@@ -163,9 +170,10 @@ def command(
         stamp_timed = bool(given.pop("stamp_timed", False))
         period = given.pop("period", None)
         timing = given.pop("timing", None)
+        builds = given.pop("schedule_builds", None)
         plan = plan_new(model, opt.ga_params(model, **given), fitness=fitness, out=out,
                         force=force, stamp_timed=stamp_timed, period=period,
-                        timing=timing)  # fmt: skip
+                        timing=timing, schedule_builds=builds)  # fmt: skip
     _run(plan, workers, cluster, quiet)
 
 
@@ -209,12 +217,20 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
         from bstool import timingfile
         from hil_mock.schedule_model import schedule_model
 
+        if not quiet:
+            builds = plan.schedule_builds
+            click.echo(
+                f"fitting the schedule model: {builds or 2} builds of random {state.problem.model}"
+                " controllers on the twin (a few seconds each)",
+                err=True,
+            )
         schedule = schedule_model(
             state.problem.model,
             period=plan.period,
             legs=state.problem.legs,
             modules=state.problem.modules,
             timing=None if plan.timing_file is None else timingfile.load(plan.timing_file),
+            builds=plan.schedule_builds,
         )
     try:
         result = execute(

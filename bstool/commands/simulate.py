@@ -87,6 +87,14 @@ class Source:
     " controller was evolved at, else compile's).",
 )
 @click.option(
+    "--other-builds",
+    type=click.IntRange(0, 64),
+    default=0,
+    help="With --stamp-timed: also play it on N builds of random controllers it was not scored"
+    " on, each alone: what a new build of it may walk (a 2-D CA build's phase pattern is not"
+    " predictable; docs/twin.md).",
+)
+@click.option(
     "--timing",
     "timing_file",
     type=click.Path(dir_okay=False),
@@ -137,6 +145,7 @@ def command(
     timing_file: str | None,
     stamp_timed: bool,
     period: float | None,
+    other_builds: int,
 ) -> None:
     """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
     print the disc's displacement and distance (paper eq. 6). Without either, run a shipped
@@ -151,6 +160,8 @@ def command(
         )
     if period is not None and not stamp_timed:
         raise InputError("--period only applies with --stamp-timed", hint="add --stamp-timed")
+    if other_builds and not stamp_timed:
+        raise InputError("--other-builds only applies with --stamp-timed", hint="add --stamp-timed")
     given = {"--build": build_dir is not None, "--states": states_file is not None,
              "--video": video is not None, "--view": view,
              "--transition-time": transition_time is not None, "--example": example,
@@ -194,7 +205,12 @@ def command(
                 hint="the schedule model is per controller model: give the controller",
             )
         result, stamp = run_model(
-            source.controller, source.states, source.label, period=period, timing_file=timing_file
+            source.controller,
+            source.states,
+            source.label,
+            period=period,
+            timing_file=timing_file,
+            other_builds=other_builds,
         )
         timing = stamp["timing"]
     else:
@@ -237,6 +253,9 @@ def command(
         )
         click.echo(f"displacement: dx = {dx:+.4f} m, dy = {dy:+.4f} m")
         click.echo(f"distance:     {result.distance:.4f} m ({result.distance * 100:.2f} cm)")
+        for key, label in (("builds_text", "builds:"), ("other_text", "new builds:")):
+            if key in stamp:
+                click.echo(f"{label:<14}{stamp[key]}")
         if "note" in stamp:
             click.echo(f"note:         {stamp['note']}")
         for name, path in (("plot", plot), ("video", video)):

@@ -18,6 +18,7 @@ import numpy as np
 from bstool.controllers import Controller
 from bstool.errors import InputError
 from bstool.sim.simulator import SimResult
+from bstool.sim.timed import ScheduleEnsemble, ScheduleSource, mean_distance, schedules_of
 
 
 def _evolved(ctrl: Controller) -> dict[str, Any]:
@@ -32,6 +33,13 @@ def evolved_period(ctrl: Controller) -> float | None:
     if isinstance(period, bool) or not isinstance(period, int | float) or not period > 0:
         return None
     return float(period)
+
+
+def evolved_builds(ctrl: Controller) -> int:
+    """The builds a stamp-timed run scored its candidates on (``--schedule-builds``; 0: one
+    model, the mean of two builds' instants, as without it)."""
+    count = _evolved(ctrl).get("schedule_builds", 0)
+    return count if isinstance(count, int) and not isinstance(count, bool) and count > 0 else 0
 
 
 def evolved_timing(ctrl: Controller, where: str) -> str | None:
@@ -63,16 +71,18 @@ def run_model(
     *,
     period: float | None,
     timing_file: str | None = None,
+    other_builds: int = 0,
 ) -> tuple[SimResult, dict[str, Any]]:
     """Play ``states`` (``ctrl``'s, from the file ``where``) on the schedule model of
     ``ctrl.model``; the result and what to add to the output. ``period`` None: the one
     ``ctrl`` was evolved at, else compile's; ``timing_file`` None: the one it was evolved
-    with, else the estimate."""
+    with, else the estimate. ``other_builds`` N: also each distance on N builds it was not
+    scored on (random controllers after the ones its run used), and their mean."""
     from bstool import timingfile
     from bstool.compile.build import default_period
     from bstool.robot import RobotSpec
     from bstool.sim.simulator import Simulator
-    from hil_mock.schedule_model import schedule_model
+    from hil_mock.schedule_model import REPRESENTATIVES, schedule_model
 
     if len(states) < 2:
         raise InputError("--stamp-timed needs at least one transition", hint="give -T 1 or more")
@@ -81,12 +91,18 @@ def run_model(
     if timing_file is None:
         timing_file = evolved_timing(ctrl, where)
     timing = None if timing_file is None else timingfile.load(timing_file)
-    fitted = schedule_model(
-        ctrl.model, period=period, legs=ctrl.legs, modules=ctrl.modules, timing=timing
-    )
-    schedule = fitted.schedule(states)
+    builds = evolved_builds(ctrl)
+
+    def fitted_on(count: int) -> ScheduleSource:
+        return schedule_model(ctrl.model, period=period, legs=ctrl.legs, modules=ctrl.modules,
+                              timing=timing, builds=count)  # fmt: skip
+
+    fitted = fitted_on(builds)
+    schedules = schedules_of(fitted, states)
     sim = Simulator(RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k))
-    result = sim.run_schedule(schedule)
+    runs = [sim.run_schedule(s) for s in schedules]
+    result, schedule = runs[0], schedules[0]  # the path shown: the first build's
+    distances = [float(r.distance) for r in runs]
     used = default_period(ctrl.legs, ctrl.modules) if period is None else period
     gaps = np.diff(schedule.samples)
     out: dict[str, Any] = {
@@ -98,8 +114,30 @@ def run_model(
         "timing_file": timing_file,
         "first_transition_s": float(schedule.samples[0]),
         "period_mean": float(gaps.mean()),
+        "schedule_builds": builds,
+        "fitness": mean_distance(distances),  # what a stamp-timed run scores it
     }
+    if other_builds:
+        first = builds or REPRESENTATIVES  # the builds it was scored on come first
+        others = fitted_on(first + other_builds)
+        assert isinstance(others, ScheduleEnsemble)
+        new = [
+            float(sim.run_schedule(m.schedule(states)).distance) for m in others.variants[first:]
+        ]
+        out["other_build_distances"] = new
+        new_cm = np.array(new) * 100
+        out["other_text"] = (
+            f"mean {new_cm.mean():.2f} cm on {other_builds} builds it was not scored on "
+            f"({new_cm.min():.2f} to {new_cm.max():.2f} cm): what a new build may walk"
+        )
     ga = ctrl.ga if isinstance(ctrl.ga, dict) else {}
+    if builds:
+        out["build_distances"] = distances
+        each = ", ".join(f"{100 * d:.2f}" for d in distances)
+        out["builds_text"] = (
+            f"{each} cm on the {builds} builds' patterns, mean {100 * out['fitness']:.2f} cm "
+            "(the stamp-timed fitness; path and distance above: the first build's)"
+        )
     if ga.get("robust") or ga.get("coevolve_faults"):
         out["note"] = (
             "this run's fitness was not a plain distance (--robust or --coevolve-faults), "

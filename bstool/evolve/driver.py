@@ -37,7 +37,7 @@ from bstool.evolve.fitness import (
 from bstool.evolve.problem import Problem
 
 if TYPE_CHECKING:
-    from bstool.sim.timed import ScheduleModel
+    from bstool.sim.timed import ScheduleSource
 
 
 def fitness_text(value: float, kind: str) -> str:
@@ -132,6 +132,12 @@ class Plan:
         return bool(self.extra.get("stamp_timed"))
 
     @property
+    def schedule_builds(self) -> int:
+        """``--schedule-builds`` of a stamp-timed run (0: not given, one model averaged over
+        two builds)."""
+        return int(self.extra.get("schedule_builds", 0))
+
+    @property
     def period(self) -> float | None:
         """``--period`` of a stamp-timed run (None: compile's default)."""
         value = self.extra.get("period")
@@ -173,10 +179,11 @@ def plan_new(
     stamp_timed: bool = False,
     period: float | None = None,
     timing: str | os.PathLike[str] | None = None,
+    schedule_builds: int | None = None,
 ) -> Plan:
     kind = opt.check_fitness(fitness)
     extra: dict[str, Any] = {"fitness": kind}
-    extra.update(opt.stamp_timed_settings(kind, stamp_timed, period, timing))
+    extra.update(opt.stamp_timed_settings(kind, stamp_timed, period, timing, schedule_builds))
     directory, replace = (None, False) if out is None else check_out(out, force=force)
     problem = Problem(opt.check_model(model), transitions=params.transitions)
     file = None if timing is None else str(timing)
@@ -199,7 +206,7 @@ def plan_resume(directory: str | os.PathLike[str], given: Mapping[str, Any]) -> 
 
 
 def factory_for(
-    kind: str, problem: Problem, workers: int, schedule_model: ScheduleModel | None = None
+    kind: str, problem: Problem, workers: int, schedule_model: ScheduleSource | None = None
 ) -> EvaluatorFactory:
     if kind == "toy":
         return ToyFitness()
@@ -231,13 +238,25 @@ def result_of(plan: Plan) -> EvolveResult:
     )
 
 
+def _check_builds(builds: int, schedule_model: Any) -> None:
+    """The schedule model must be the one the run records (its fitness replays on it)."""
+    have = len(getattr(schedule_model, "variants", ())) or 0
+    if have != builds:
+        what = f"an ensemble of {have} builds" if have else "one model (two builds' mean)"
+        want = f"{builds} builds" if builds else "one model (two builds' mean)"
+        raise InputError(
+            f"this run is evaluated on {want}, but the schedule model given is {what}",
+            hint=f"pass schedule_model(model, period=..., builds={builds})",
+        )
+
+
 def execute(
     plan: Plan,
     *,
     workers: int | None = None,
     cluster: Any = None,
     on_generation: Callable[[Generation], None] | None = None,
-    schedule_model: ScheduleModel | None = None,
+    schedule_model: ScheduleSource | None = None,
 ) -> EvolveResult:
     """Run ``plan`` to its end. Physics uses ``workers`` threads (default: the usable CPUs;
     1 per Dask thread with ``cluster``, an address or a ``dask.distributed.Client``).
@@ -249,8 +268,10 @@ def execute(
         raise InputError(
             "this run is stamp-timed but no schedule model was given",
             hint="run it with `bstool evolve --stamp-timed`, or pass schedule_model="
-            "hil_mock.schedule_model.schedule_model(model, period=...)",
+            "hil_mock.schedule_model.schedule_model(model, period=..., builds=...)",
         )
+    if plan.stamp_timed:
+        _check_builds(plan.schedule_builds, schedule_model)
     factory = (
         factory_for(plan.fitness, state.problem, threads, schedule_model)
         if plan.stamp_timed
@@ -333,15 +354,17 @@ def evolve(
     on_generation: Callable[[Generation], None] | None = None,
     stamp_timed: bool = False,
     period: float | None = None,
-    schedule_model: ScheduleModel | None = None,
+    schedule_model: ScheduleSource | None = None,
     timing: str | os.PathLike[str] | None = None,
+    schedule_builds: int | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
 
     ``stamp_timed=True`` (``--stamp-timed``, ``period`` = ``--period``, ``timing`` =
-    ``--timing``, a bstool.timing/1 file recorded by sha256) needs the ``schedule_model`` of
+    ``--timing``, a bstool.timing/1 file recorded by sha256, ``schedule_builds`` =
+    ``--schedule-builds``, None: one averaged model) needs the ``schedule_model`` of
     ``model`` at that period and timing (``hil_mock.schedule_model.schedule_model(model,
-    period=period, timing=bstool.timingfile.load(timing))``).
+    period=period, timing=bstool.timingfile.load(timing), builds=schedule_builds or 0)``).
 
     ``None`` means the default (docs/evolution.md; a random seed is drawn and recorded).
     ``out`` is the run folder (best.json, history.csv, checkpoint after every generation); with
@@ -367,7 +390,7 @@ def evolve(
     opt.check_workers(workers)
     plan = plan_new(
         model, params, fitness=fitness, out=out, force=force, stamp_timed=stamp_timed,
-        period=period, timing=timing,
+        period=period, timing=timing, schedule_builds=schedule_builds,
     )  # fmt: skip
     return execute(
         plan,
@@ -385,7 +408,7 @@ def resume(
     workers: int | None = None,
     cluster: Any = None,
     on_generation: Callable[[Generation], None] | None = None,
-    schedule_model: ScheduleModel | None = None,
+    schedule_model: ScheduleSource | None = None,
 ) -> EvolveResult:
     """Continue the run in folder ``out`` from its checkpoint (``gens`` may extend it); it
     reaches the same files as a run never interrupted. Raises ``InputError`` when ``out``

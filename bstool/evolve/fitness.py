@@ -132,9 +132,10 @@ class PhysicsFitness:
 class StampTimedFitness:
     """Factory of the stamp-timed MuJoCo evaluator (``bstool evolve --stamp-timed``): each
     candidate's state sequence becomes the schedule a build of it would follow
-    (``schedule_model``, a :class:`bstool.sim.timed.ScheduleModel`), played with
+    (``schedule_model``: a :class:`bstool.sim.timed.ScheduleModel`, or a
+    :class:`~bstool.sim.timed.ScheduleEnsemble` of several builds' schedules), played with
     ``BatchEvaluator.evaluate_schedules``; fitness = distance of eq. 6 between the path's
-    first and last samples."""
+    first and last samples (an ensemble: its mean over the builds)."""
 
     schedule_model: Any
     legs: int = 5
@@ -187,11 +188,20 @@ class StampTimedEvaluator(PhysicsEvaluator):
         self.schedule_model = schedule_model
 
     def __call__(self, sequences: Sequence[np.ndarray]) -> list[float]:
+        from bstool.sim.timed import mean_distance, schedules_of
+
         self._stop.clear()
-        schedules = [self.schedule_model.schedule(s) for s in sequences]
+        groups = [schedules_of(self.schedule_model, s) for s in sequences]
+        flat = [s for group in groups for s in group]
         try:
-            results = self.runner.evaluate_schedules(schedules, progress=self._progress)
+            results = self.runner.evaluate_schedules(flat, progress=self._progress)
         except KeyboardInterrupt:
             self._stop.set()
             raise
-        return [float(r.distance) for r in results]
+        out, start = [], 0
+        for group in groups:
+            out.append(
+                mean_distance([float(r.distance) for r in results[start : start + len(group)]])
+            )
+            start += len(group)
+        return out

@@ -44,7 +44,13 @@ FIXED_ON_RESUME = (
     "parasites",
     "parasite_k",
     "stamp_timed",
+    "schedule_builds",
 )
+
+#: ``--schedule-builds K``: a stamp-timed candidate is played on K builds of random controllers,
+#: its fitness the mean distance (``bstool.sim.timed.ScheduleEnsemble``; K physics runs per
+#: candidate); without it, one model averaged over two builds (docs/twin.md "For evolution")
+MAX_BUILDS = 64
 
 
 def default(name: str, model: str | None = None) -> Any:
@@ -171,13 +177,13 @@ def ga_params(
 
 
 def stamp_timed_settings(
-    kind: str, stamp_timed: bool, period: Any, timing: Any = None
+    kind: str, stamp_timed: bool, period: Any, timing: Any = None, builds: Any = None
 ) -> dict[str, Any]:
-    """What a run saves for ``--stamp-timed`` / ``--period`` / ``--timing`` (nothing without
-    them). ``timing``: a ``bstool.timing/1`` file; the run records its name and sha256 (a
-    resumed run must be given the same file)."""
+    """What a run saves for ``--stamp-timed`` / ``--period`` / ``--timing`` /
+    ``--schedule-builds`` (nothing without them). ``timing``: a ``bstool.timing/1`` file; the
+    run records its name and sha256 (a resumed run must be given the same file)."""
     if not stamp_timed:
-        for name, value in (("period", period), ("timing", timing)):
+        for name, value in (("period", period), ("timing", timing), ("schedule-builds", builds)):
             if value is not None:
                 raise InputError(
                     f"--{name} only applies with --stamp-timed", hint="add --stamp-timed"
@@ -193,6 +199,12 @@ def stamp_timed_settings(
     ):
         raise InputError(f"--period must be a positive number of seconds, got {period!r}")
     out: dict[str, Any] = {"stamp_timed": True, "period": None if period is None else float(period)}
+    if builds is not None:
+        if isinstance(builds, bool) or not isinstance(builds, int) or not 1 <= builds <= MAX_BUILDS:
+            raise InputError(
+                f"--schedule-builds must be a whole number in 1..{MAX_BUILDS}, got {builds!r}"
+            )
+        out["schedule_builds"] = builds
     if timing is not None:
         out["timing"] = timing_record(timing)
     return out

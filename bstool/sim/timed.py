@@ -359,3 +359,66 @@ class ScheduleModel:
 
 
 MODEL_FORMAT = "bstool.schedule-model/1"
+
+
+ENSEMBLE_FORMAT = "bstool.schedule-ensemble/1"
+
+
+@dataclass(frozen=True, eq=False)
+class ScheduleEnsemble:
+    """The schedule models of several builds (random controllers of one model and period),
+    each fitted alone; a candidate's fitness is its mean distance over all of them.
+
+    Which phase pattern a 2-D CA build's serve loop settles into depends on how its slowest
+    wires meet, which no model of the controller predicts (docs/twin.md "For evolution"): the
+    same gait walks 7 cm further on one build's pattern than on another's. A model averaged
+    over builds is a pattern no build has, and evolution overfits it; the mean over builds
+    rewards gaits that walk on any of them, and predicts a new build (the twin) to ~3 cm."""
+
+    variants: tuple[ScheduleModel, ...]
+
+    def __post_init__(self) -> None:
+        if not self.variants:
+            raise InputError("a schedule ensemble needs at least one build's model")
+
+    @property
+    def actuator_count(self) -> int:
+        return self.variants[0].actuator_count
+
+    @property
+    def period(self) -> float:
+        return float(np.mean([v.period for v in self.variants]))
+
+    def schedules(self, states: np.ndarray) -> list[StampSchedule]:
+        """The (T+1, n, m) state sequence on every build's pattern, in order."""
+        return [v.schedule(states) for v in self.variants]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"format": ENSEMBLE_FORMAT, "variants": [v.to_json() for v in self.variants]}
+
+    @classmethod
+    def from_json(cls, obj: Any, where: str = "schedule ensemble") -> ScheduleEnsemble:
+        if not isinstance(obj, dict) or obj.get("format") != ENSEMBLE_FORMAT:
+            raise InputError(f"{where}: not a {ENSEMBLE_FORMAT} object")
+        items = obj.get("variants")
+        if not isinstance(items, list):
+            raise InputError(f"{where}: 'variants' must be a list")
+        return cls(tuple(ScheduleModel.from_json(v, f"{where} variant {i}")
+                         for i, v in enumerate(items)))  # fmt: skip
+
+
+ScheduleSource = ScheduleModel | ScheduleEnsemble
+"""What evolution plays a candidate's state sequence on."""
+
+
+def mean_distance(distances: Sequence[float]) -> float:
+    """A candidate's stamp-timed fitness from its distances on each schedule (one: itself)."""
+    return math.fsum(distances) / len(distances)
+
+
+def schedules_of(source: ScheduleSource, states: np.ndarray) -> list[StampSchedule]:
+    """Every schedule a candidate is scored on: one for a model, one per build of an
+    ensemble (its fitness is the mean distance over them)."""
+    if isinstance(source, ScheduleEnsemble):
+        return source.schedules(states)
+    return [source.schedule(states)]
