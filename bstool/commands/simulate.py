@@ -91,8 +91,8 @@ class Source:
     type=click.IntRange(0, 64),
     default=0,
     help="With --stamp-timed: also play it on N builds of random controllers it was not scored"
-    " on, each alone: what a new build of it may walk (a 2-D CA build's phase pattern is not"
-    " predictable; docs/twin.md).",
+    " on, each alone: the spread of builds' timing (for the 2-D CA models, whose phase pattern"
+    " is not predictable, their mean is what a new build walks; docs/twin.md).",
 )
 @click.option(
     "--timing",

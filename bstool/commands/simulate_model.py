@@ -128,7 +128,7 @@ def run_model(
         new_cm = np.array(new) * 100
         out["other_text"] = (
             f"mean {new_cm.mean():.2f} cm on {other_builds} builds it was not scored on "
-            f"({new_cm.min():.2f} to {new_cm.max():.2f} cm): what a new build may walk"
+            f"({new_cm.min():.2f} to {new_cm.max():.2f} cm): the spread of builds' timing"
         )
     ga = ctrl.ga if isinstance(ctrl.ga, dict) else {}
     if builds:
