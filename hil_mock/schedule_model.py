@@ -1,4 +1,4 @@
-"""A schedule model for evolution: one representative build per (model, period), fitted once.
+"""Schedule models for evolution: builds of random controllers per (model, period), fitted once.
 
 Evolution cannot compile and run every candidate on the twin, so :func:`schedule_model`
 compiles random controllers of the model (fixed seeds) with the build's own templates,
@@ -7,11 +7,13 @@ records on the twin without physics when each module's servo starts each transit
 a :class:`bstool.sim.timed.ScheduleModel`: each module's power-up drive instant, the mean
 instant of every transition, each module's mean offset from it at every transition (under the
 serve loop the modules drift apart over the first transitions, each at its own pace) and the
-mean period. The representatives are compiled at the period, which sets HoldFrames.
-Applied to any candidate's state sequence it gives that candidate's stamp-timed schedule in
-microseconds. Cached in memory per (model, period, robot, transitions, representatives,
-timing model, bstool version, templates hash): a model fitted with one ``bstool.timing/1``
-file (compiled and run with it) is never reused for another timing.
+mean period: over two builds (the default), or one per build for a
+:class:`bstool.sim.timed.ScheduleEnsemble` of K builds (``builds=K``). The builds are
+compiled at the period, which sets HoldFrames. Applied to any candidate's state sequence a
+model gives that candidate's stamp-timed schedule in microseconds. Each build's instants are
+cached in memory per (model, period, robot, transitions, seed, timing model, bstool version,
+templates hash): a build compiled and run with one ``bstool.timing/1`` file is never reused
+for another timing, and the default model and an ensemble share their first builds.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from bstool import __version__, buildfile, timingfile
 from bstool.compile import templates_dir
 from bstool.compile.build import compile_loaded
 from bstool.controllers import Controller
-from bstool.errors import BuildError
+from bstool.errors import BuildError, InputError
 from bstool.evolve.problem import Problem
 from bstool.robot import state_to_angle
 from bstool.sim.timed import ScheduleEnsemble, ScheduleModel
@@ -151,6 +153,8 @@ def schedule_model(
     ensemble were evolved: their fitness replays with it); ``builds`` = K >= 1: a
     :class:`ScheduleEnsemble` of K builds each fitted alone (``bstool evolve --stamp-timed``
     since 2026-12-03, ``--schedule-builds``)."""
+    if isinstance(builds, bool) or not isinstance(builds, int) or builds < 0:
+        raise InputError(f"builds must be a whole number >= 0, got {builds!r}")
     key = f"{__version__}:{templates_hash()}:{timing_digest(timing)}"
     if timing is not None and timing == DEFAULT_TIMING:
         timing = None

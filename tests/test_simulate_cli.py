@@ -13,6 +13,7 @@ import pytest
 from conftest import run_cli
 
 from bstool.builtin import MODELS
+from bstool.errors import InputError
 from bstool.moduleid import ModuleId
 from bstool.sim import Simulator, hold_failed
 
@@ -189,7 +190,25 @@ def test_other_builds_are_the_ones_after_those_it_was_scored_on(
     assert got["other_build_distances"] == [want]
     assert got["fitness"] == got["distance"] != want  # one model: the fitness is its distance
     code, out, _ = run_cli([*args, "--other-builds", "1"], capsys)
-    assert code == 0 and "on 1 builds it was not scored on" in out
+    assert code == 0 and "on 1 build it was not scored on" in out
+
+
+@pytest.mark.parametrize("bad", ["3", True, -1, 65])
+def test_a_bad_recorded_build_count_is_a_clear_error(
+    bad: object, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from bstool.builtin import builtin_controller
+    from hil_mock.schedule_model import schedule_model
+
+    data = json.loads(builtin_controller("ca1d").read_text())
+    data["ga"]["schedule_builds"] = bad
+    ctrl = tmp_path / "c.json"
+    ctrl.write_text(json.dumps(data))
+    code, _, err = run_cli(["simulate", str(ctrl), "--stamp-timed", "-T", "1", "-q"], capsys)
+    assert code == 2 and "ga.schedule_builds" in err and "Traceback" not in err
+    if bad != 65:  # 65 builds is a lot but a valid request of the library
+        with pytest.raises(InputError, match="builds must be"):
+            schedule_model("ca1d", builds=bad)  # type: ignore[arg-type]
 
 
 def test_stamp_timed_period_defaults_to_the_evolved_one() -> None:

@@ -277,7 +277,7 @@ def test_an_ensemble_scores_a_candidate_on_every_build() -> None:
     assert [s.times.tolist() for s in schedules_of(ens, seqs[0])] == [
         m.schedule(seqs[0]).times.tolist() for m in models
     ]
-    assert ens.period == pytest.approx(0.48) and ens.actuator_count == 30
+    assert ens.actuator_count == 30
     back = ScheduleEnsemble.from_json(json.loads(json.dumps(ens.to_json())))
     assert [s.times.tolist() for s in back.schedules(seqs[0])] == [
         s.times.tolist() for s in ens.schedules(seqs[0])
@@ -293,24 +293,36 @@ def test_an_ensemble_scores_a_candidate_on_every_build() -> None:
 
 @pytest.mark.slow
 def test_evolve_stamp_timed_runs_and_resumes(cli, tmp_path: Path) -> None:
+    from hil_mock.schedule_model import schedule_model
+
     out = tmp_path / "run"
     args = ["--pop", "2", "--gens", "1", "--transitions", "2", "--seed", "3", "--workers", "1"]
-    run = cli("evolve", "nnsig", "--stamp-timed", "--schedule-builds", "2", *args, "--out",
+    run = cli("evolve", "nnsig", "--stamp-timed", "--schedule-builds", "3", *args, "--out",
               str(out), "-q")  # fmt: skip
     assert run.code == 0, run.err
     best = fileio.read_json(out / "best.json")
-    assert best["fitness"] > 0 and best["ga"]["schedule_builds"] == 2
-    again = cli("evolve", "--resume", str(out), "--schedule-builds", "3", "-q")
-    assert again.code != 0 and "--schedule-builds is 3" in again.err
-    replay = cli("simulate", str(out / "best.json"), "--stamp-timed", "-T", "2", "--json")
+    assert best["fitness"] > 0 and best["ga"]["schedule_builds"] == 3
+    again = cli("evolve", "--resume", str(out), "--schedule-builds", "2", "-q")
+    assert again.code != 0 and "--schedule-builds is 2" in again.err
+    replay = cli("simulate", str(out / "best.json"), "--stamp-timed", "-T", "2", "--json",
+                 "--other-builds", "1")  # fmt: skip
     assert replay.code == 0, replay.err
     got = json.loads(replay.out)
-    assert got["fitness"] == best["fitness"] and got["schedule_builds"] == 2
-    assert len(got["build_distances"]) == 2 and got["distance"] == got["build_distances"][0]
+    assert got["fitness"] == best["fitness"] and got["schedule_builds"] == 3
+    assert len(got["build_distances"]) == 3 and got["distance"] == got["build_distances"][0]
+    assert not any(k.endswith("_text") for k in got)  # the JSON holds data, not sentences
+    fourth = schedule_model("nnsig", builds=4).variants[3]  # the first it was not scored on
+    states = load_controller(out / "best.json").states(2)
+    assert got["other_build_distances"] == [Simulator(SPEC).run_schedule(
+        fourth.schedule(states)).distance]  # fmt: skip
     text = cli("simulate", str(out / "best.json"), "--stamp-timed", "-T", "2")
-    assert text.code == 0 and "on the 2 builds' patterns" in text.out
+    assert text.code == 0 and "on the 3 builds' patterns" in text.out
     more = cli("evolve", "--resume", str(out), "--gens", "2", "--workers", "1", "-q")
     assert more.code == 0, more.err
+    best = fileio.read_json(out / "best.json")
+    assert best["ga"]["schedule_builds"] == 3  # kept by the resumed run, which replays too
+    replay = cli("simulate", str(out / "best.json"), "--stamp-timed", "-T", "2", "--json")
+    assert json.loads(replay.out)["fitness"] == best["fitness"]
 
 
 @pytest.mark.slow

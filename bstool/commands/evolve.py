@@ -215,12 +215,12 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
     schedule = None
     if plan.stamp_timed:
         from bstool import timingfile
-        from hil_mock.schedule_model import schedule_model
+        from hil_mock.schedule_model import REPRESENTATIVES, schedule_model
 
         if not quiet:
-            builds = plan.schedule_builds
+            builds = plan.schedule_builds or REPRESENTATIVES
             click.echo(
-                f"fitting the schedule model: {builds or 2} builds of random {state.problem.model}"
+                f"fitting the schedule model: {builds} builds of random {state.problem.model}"
                 " controllers on the twin (a few seconds each)",
                 err=True,
             )

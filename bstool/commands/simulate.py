@@ -234,7 +234,7 @@ def command(
         {
             "transitions": result.transitions,
             "transition_time": None if build_dir or stamp_timed else sim.transition_time,
-            **stamp,
+            **{k: v for k, v in stamp.items() if not k.endswith("_text")},
             "source": source.label,
             "failed": [str(m) for m in source.failed],
             "seed": seed,

@@ -35,11 +35,19 @@ def evolved_period(ctrl: Controller) -> float | None:
     return float(period)
 
 
-def evolved_builds(ctrl: Controller) -> int:
+def evolved_builds(ctrl: Controller, where: str = "the controller") -> int:
     """The builds a stamp-timed run scored its candidates on (``--schedule-builds``; 0: one
     model, the mean of two builds' instants, as without it)."""
+    from bstool.evolve.options import MAX_BUILDS
+
     count = _evolved(ctrl).get("schedule_builds", 0)
-    return count if isinstance(count, int) and not isinstance(count, bool) and count > 0 else 0
+    if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= MAX_BUILDS:
+        raise InputError(
+            f"{where}: ga.schedule_builds must be a whole number in 1..{MAX_BUILDS}, got {count!r}",
+            hint="it is what `bstool evolve --schedule-builds` recorded: restore it, or remove it"
+            " to replay on the one averaged model",
+        )
+    return count
 
 
 def evolved_timing(ctrl: Controller, where: str) -> str | None:
@@ -91,7 +99,7 @@ def run_model(
     if timing_file is None:
         timing_file = evolved_timing(ctrl, where)
     timing = None if timing_file is None else timingfile.load(timing_file)
-    builds = evolved_builds(ctrl)
+    builds = evolved_builds(ctrl, where)
 
     def fitted_on(count: int) -> ScheduleSource:
         return schedule_model(ctrl.model, period=period, legs=ctrl.legs, modules=ctrl.modules,
@@ -127,7 +135,8 @@ def run_model(
         out["other_build_distances"] = new
         new_cm = np.array(new) * 100
         out["other_text"] = (
-            f"mean {new_cm.mean():.2f} cm on {other_builds} builds it was not scored on "
+            f"mean {new_cm.mean():.2f} cm on {other_builds} build{'s' * (other_builds > 1)} "
+            "it was not scored on "
             f"({new_cm.min():.2f} to {new_cm.max():.2f} cm): the spread of builds' timing"
         )
     ga = ctrl.ga if isinstance(ctrl.ga, dict) else {}

@@ -240,7 +240,7 @@ def result_of(plan: Plan) -> EvolveResult:
 
 def _check_builds(builds: int, schedule_model: Any) -> None:
     """The schedule model must be the one the run records (its fitness replays on it)."""
-    have = len(getattr(schedule_model, "variants", ())) or 0
+    have = len(getattr(schedule_model, "variants", ()))
     if have != builds:
         what = f"an ensemble of {have} builds" if have else "one model (two builds' mean)"
         want = f"{builds} builds" if builds else "one model (two builds' mean)"

@@ -371,9 +371,10 @@ class ScheduleEnsemble:
 
     Which phase pattern a 2-D CA build's serve loop settles into depends on how its slowest
     wires meet, which no model of the controller predicts (docs/twin.md "For evolution"): the
-    same gait walks 7 cm further on one build's pattern than on another's. A model averaged
-    over builds is a pattern no build has, and evolution overfits it; the mean over builds
-    rewards gaits that walk on any of them, and predicts a new build (the twin) to ~3 cm."""
+    shipped ca2dsing walks 28.1–42.7 cm on six builds' patterns. A model averaged over builds
+    is a pattern no build has, and evolution overfits it; the mean over builds rewards gaits
+    that walk on all of them (fitness 5.0 cm above the twin on average against 8.6), and the
+    mean over builds a controller was not scored on predicts a 2-D build to within 5 cm."""
 
     variants: tuple[ScheduleModel, ...]
 
@@ -384,10 +385,6 @@ class ScheduleEnsemble:
     @property
     def actuator_count(self) -> int:
         return self.variants[0].actuator_count
-
-    @property
-    def period(self) -> float:
-        return float(np.mean([v.period for v in self.variants]))
 
     def schedules(self, states: np.ndarray) -> list[StampSchedule]:
         """The (T+1, n, m) state sequence on every build's pattern, in order."""
