@@ -83,9 +83,11 @@ def flag(name: str) -> str:
     return "MODEL" if name == "model" else "--" + name.replace("_", "-")
 
 
-def _int(name: str, value: Any, low: int) -> int:
+def _int(name: str, value: Any, low: int, high: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < low:
         raise InputError(f"{flag(name)} must be an integer of at least {low}, got {value!r}")
+    if high is not None and value > high:
+        raise InputError(f"{flag(name)} must be an integer of at most {high}, got {value!r}")
     return value
 
 
@@ -200,11 +202,7 @@ def stamp_timed_settings(
         raise InputError(f"--period must be a positive number of seconds, got {period!r}")
     out: dict[str, Any] = {"stamp_timed": True, "period": None if period is None else float(period)}
     if builds is not None:
-        if isinstance(builds, bool) or not isinstance(builds, int) or not 1 <= builds <= MAX_BUILDS:
-            raise InputError(
-                f"--schedule-builds must be a whole number in 1..{MAX_BUILDS}, got {builds!r}"
-            )
-        out["schedule_builds"] = builds
+        out["schedule_builds"] = _int("schedule_builds", builds, 1, MAX_BUILDS)
     if timing is not None:
         out["timing"] = timing_record(timing)
     return out
