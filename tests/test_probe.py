@@ -62,7 +62,7 @@ def test_program_fits_one_slot_and_knows_its_bits() -> None:
     info = QUICK.info
     assert info["empty"].statements == 1 and info["assign"].statements == 2
     assert info["assign"].bits - info["empty"].bits == 44  # x = x + 1 (docs/twin.md)
-    assert info["pause_1"].bits == info["pause_4"].bits  # the count is in a variable
+    assert info["pause_1"].bits == info["pause_20"].bits  # the count is in a variable
     assert QUICK.expected_seconds() < 8 and FULL.expected_seconds() < 35
 
 
@@ -315,7 +315,8 @@ def test_probe_measures_the_served_twin(
     scale: float, file_ratio: float | None, tmp_path: Path
 ) -> None:
     """`python -m hil_mock serve --timing-scale F --timing real` is measured as F within 3 %;
-    served with a timing file (--timing-model) as the file's ratio."""
+    served with a timing file (--timing-model) as the file's ratio. Five repeats (not --quick's
+    3): the median then survives two repeats spoiled by a loaded machine delaying the twin."""
     model_args = []
     if file_ratio is not None:
         model_args = ["--timing-model", str(_ratio_file(tmp_path, file_ratio))]
@@ -332,8 +333,8 @@ def test_probe_measures_the_served_twin(
         _label, port = serve.stdout.readline().split()
         out = tmp_path / "stamp-timing.json"
         done = subprocess.run(
-            [sys.executable, "-m", "bstool", "probe", "--port", port, "--quick", "--json",
-             "-o", str(out)],
+            [sys.executable, "-m", "bstool", "probe", "--port", port, "--quick", "--repeats", "5",
+             "--json", "-o", str(out)],
             capture_output=True,
             text=True,
             timeout=60,

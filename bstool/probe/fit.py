@@ -104,6 +104,13 @@ def _diff(a: Slope, b: Slope, per: float, less: float = 0.0) -> Coefficient:
     return Coefficient(value, math.hypot(a.sd, b.sd) / abs(per))
 
 
+def _unit(program: ProbeProgram, sl: Mapping[str, Slope], unit: str, scale: float) -> Coefficient:
+    """One wait unit (µs / ``scale``) from the two kinds that wait ``unit`` at different counts."""
+    low, high = sorted({s.kind for s in program.segments if s.kind.unit == unit},
+                       key=lambda k: k.param)  # fmt: skip
+    return _diff(sl[high.name], sl[low.name], (high.param - low.param) * scale)
+
+
 def fit(program: ProbeProgram, spans: Mapping[tuple[int, int], float]) -> TimingModel:
     """The timing model measured by ``spans`` (segment durations, see :func:`intervals`)."""
     sl = slopes(program, spans)
@@ -121,9 +128,9 @@ def fit(program: ProbeProgram, spans: Mapping[tuple[int, int], float]) -> Timing
     ratio = Coefficient(
         float(y.sum()) / model_sum, float(math.sqrt(float((sd**2).sum()))) / model_sum
     )
-    pause = _diff(sl["pause_4"], sl["pause_1"], 3 * 1000.0)
-    pulsout = _diff(sl["pulsout_2500"], sl["pulsout_125"], 2500 - 125)
-    serin = _diff(sl["serin_5"], sl["serin_1"], 4 * 1000.0)
+    pause = _unit(program, sl, "pause", 1000.0)
+    pulsout = _unit(program, sl, "pulsout", 1.0)
+    serin = _unit(program, sl, "serin", 1000.0)
     extra_bits = info["serout_3"].bits - info["serout_1"].bits
     item = _diff(sl["serout_3"], sl["serout_1"], 2, extra_bits * per_bit.value)
     return TimingModel(
