@@ -6,7 +6,8 @@
 # simulator's. The run with the longest twin distance is the candidate to ship
 # (docs/results.md "The shipped controllers re-evolved with --stamp-timed"): copy OUT/M-sS/best.json and history.csv to
 # bstool/data/controllers/M.json and M.history.csv, then regenerate the goldens.
-# About 1 hour on 1 core. Usage: [MODELS="nnsin nnsig"] [SEEDS="1 2"] bash bench/reevolve_shipped.sh [OUT_DIR] [WORKERS]
+# About 1 hour on 1 core. Usage: [MODELS="nnsin nnsig"] [SEEDS="1 2"]
+# [EVOLVE_ARGS="--schedule-builds 3"] bash bench/reevolve_shipped.sh [OUT_DIR] [WORKERS]
 set -euo pipefail
 OUT=${1:-/tmp/reevolve}
 WORKERS=${2:-1}
@@ -26,7 +27,7 @@ for m in ${MODELS:-nnsin nnsig ca1d ca2dsing ca2ddiff}; do
     run="$OUT/$m-s$seed"
     [ -f "$run/best.json" ] || bstool evolve "$m" --pop "$pop" --gens "$gens" \
       --coevol-gens "$coevol" --pm "$pm" --seed "$seed" --workers "$WORKERS" --stamp-timed \
-      --out "$run" --force -q
+      ${EVOLVE_ARGS:-} --out "$run" --force -q
     [ -f "$run/twin.json" ] && continue
     bstool compile "$run/best.json" -o "$run/build" -q --force
     bstool twin "$run/build" -T 30 --json -q > "$run/twin.json.tmp"

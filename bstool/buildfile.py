@@ -88,6 +88,7 @@ class LinkSettings:
     frame_units: int | None = None  # FrameTime: a hold frame; the hold is hold_frames of them
     master_try_units: int | None = None  # MasterTry: a master's try besides its pulse
     listen_try_units: int | None = None  # ListenTry: a listen besides its pulse
+    heard_try_units: int | None = None  # HeardTry: what a listen that hears a REQ adds
     ask_tries: int | None = None  # AskTries: REQs in a row while the slave's state is missing
     lack_tries: int | None = None  # LackTries: listens in a row while the master's is missing
 
@@ -103,6 +104,7 @@ _LINK_OPTIONAL = (  # NN only / CA only: None (null) in a build of the other fam
     "frame_units",
     "master_try_units",
     "listen_try_units",
+    "heard_try_units",
     "ask_tries",
     "lack_tries",
 )

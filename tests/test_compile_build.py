@@ -39,7 +39,8 @@ def test_cli_writes_every_module(tmp_path: Path, capsys: pytest.CaptureFixture[s
     for entry in man["modules"]:
         main_bsx = (out / entry["entry"]).read_text()
         assert main_bsx.startswith("' {$STAMP BS2sx, rules1.bsx, rules2.bsx}\n' {$PBASIC 2.5}\n")
-        assert f'DEBUG "bstool {entry["label"]} {man["controller"]["hash8"]}", CR' in main_bsx
+        boot = (out / entry["slots"][-1]["file"]).read_text()  # CA: power-up in the last slot
+        assert f'DEBUG "bstool {entry["label"]} {man["controller"]["hash8"]}", CR' in boot
         assert entry["timing"]["longest_servo_gap_s"] <= 0.025
         assert entry["ram_bytes"] <= 26
     assert (out / "WIRING.md").read_text().startswith("# Wiring for controller")

@@ -32,6 +32,11 @@ def test_frame_vectors() -> None:
         raw = link.encode(want, nn=nn)
         assert raw.hex(" ").upper() == case["bytes"]
         assert link.parse(raw, nn=nn) == want
+    for case in data["keepalives"]:
+        want = link.Frame(case["kind"], case["t"], (), case["age"])
+        raw = link.encode(want, nn=False)
+        assert raw.hex(" ").upper() == case["bytes"]
+        assert link.parse(raw, nn=False) == want
     for case in data["packed"]:
         raw = link.pack_states(case["states"], case["h"])
         assert raw.hex(" ").upper() == case["bytes"]
@@ -115,6 +120,34 @@ def test_single_bit_errors_are_caught(s: int, t: int, flip: int) -> None:
     assert link.decode_state(link.encode_state(s, t) ^ (1 << flip), t) is None
 
 
+@given(
+    age=st.integers(0, link.MAX_AGE),
+    s=st.integers(0, 15),
+    t=st.integers(0, 7),
+    flip=st.integers(0, 7),
+    u=st.integers(1, 7),
+)
+def test_ages_and_states_never_pass_for_each_other(
+    age: int, s: int, t: int, flip: int, u: int
+) -> None:
+    """A keep-alive's age (protocol/link.md §3): round trip; a state's byte codes as before;
+    one flipped payload bit, or a header of another t, never turns an age into a state or a
+    state into an age."""
+    b = link.encode_age(age, t)
+    assert link.decode_age(b, t) == age and link.decode_state(b, t) is None
+    assert link.encode_value(s, t) == link.encode_state(s, t)
+    assert link.decode_age(link.encode_state(s, t), t) is None
+    assert link.decode_state(b ^ (1 << flip), t) is None
+    assert link.decode_age(link.encode_state(s, t) ^ (1 << flip), t) is None
+    assert link.decode_state(b, t ^ u) is None  # a header's t flipped: never a state
+    frame = link.Frame("REP", t, (), age)
+    assert link.parse(link.encode(frame, nn=False), nn=False) == frame
+    with pytest.raises(ValueError, match="age"):
+        link.encode_age(link.MAX_AGE + 1, t)
+    with pytest.raises(ValueError, match="carries an age"):
+        link.encode(link.Frame("REQ", t, (), age), nn=True)
+
+
 def test_bare_answers_are_two_bits_apart() -> None:
     """NN TOOK, REP and WAIT, and READY against every header a master hears (protocol/link.md
     §3): no single flipped bit turns one into another (a WAIT read as REP deadlocked a leg)."""
@@ -129,7 +162,7 @@ def test_bare_answers_are_two_bits_apart() -> None:
 DECLARED = {
     "Baud", "HoldFrames", "ReplyWait", "Listen", "Pace", "PayloadWait", "StatesWait", "DeadTicks",
     "PaceTicks", "JoinTicks", "JoinMs", "TickQuiet", "AskQuiet", "ListenQuiet", "HeardQuiet",
-    "AskHeardQuiet", "FrameTime", "MasterTry", "ListenTry", "AskTries", "LackTries",
+    "AskHeardQuiet", "FrameTime", "MasterTry", "ListenTry", "HeardTry", "AskTries", "LackTries",
 }  # fmt: skip
 """The CONs the manifest accounts for (test_every_program_declares_the_manifest_constants)."""
 
@@ -171,6 +204,9 @@ def test_every_program_declares_the_manifest_constants(tmp_path: Path) -> None:
                 assert int(con["FrameTime"]) == k.frame_units
                 assert int(con["MasterTry"]) == k.master_try_units
                 assert int(con["ListenTry"]) == k.listen_try_units
+                assert int(con["HeardTry"]) == k.heard_try_units
+                # a keep-alive's age: the hold in 63 steps, rounded up (protocol/link.md §4.2)
+                assert re.search(r"^AgeUnit\s+CON\s+HoldTime \+ 62 / 63\b", text, re.M)
                 assert int(con["AskTries"]) == k.ask_tries
                 assert int(con["LackTries"]) == k.lack_tries
                 dead_ms = (m.dead_ticks - 1) * k.tick_quiet_units * link.CA_QUIET_UNIT_MS

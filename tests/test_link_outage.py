@@ -73,7 +73,17 @@ def _outage_exact(
         ("ca1d", Reset("2.3", 1.5, 4.0)),
         ("ca2dsing", Reset("0.0", 1.62, 4.0)),
         ("ca2dsing", Reset("2.3", 1.62, 5.0)),
-        ("ca1d", Reset("2.3", 1.62, 4.0)),  # rejoined with 2.4 four transitions ahead
+        pytest.param(
+            "ca1d",
+            Reset("2.3", 1.62, 4.0),
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="open (docs/link-redesign.md §6, 2026-12-04): 2.2 waited with S^3, 2.4 "
+                "went on with S^2 and 2.3 came back with S^2; the twin's 2.2 reads S^3 through "
+                "transition 7 as --fail-at 3 says, the composite reference (--held-by, "
+                "--rejoin-with) gives it another S^5; 1.62 and 1.66 s of 10 instants in 1.5-2.3",
+            ),
+        ),  # before the hold clock rode in the keep-alives: rejoined with 2.4 four ahead, exact
         # neighbours that held different transitions (docs/link-redesign.md §2.4) at these
         # instants before the silence clock (protocol/link.md §4.5); offs of 4-5 s: the
         # dead-limit is 2.5-3.5 s at nominal timing
@@ -93,30 +103,35 @@ def test_a_reader_that_welcomed_in_the_rejoin_transition_reads_its_held_state_th
     builds: dict[str, Build],
 ) -> None:
     """The rejoin is per link too (docs/link-redesign.md "Traced 2026-12-02"): 1.0 entered
-    transition 6 holding the lead 0.0 dead and WELCOMEd it there, so it reads its held S^3
-    through 6 (``held`` (3, 7)); 4.0 WELCOMEd it in 5 and reads it from the rejoin T2 = 6."""
-    o = _outage_exact(builds["ca2dsing"], Reset("0.0", 2.0, 3.0))
-    assert (o.failed_at, o.rejoin) == (4, 6)
-    assert o.links[ModuleId(1, 0)] == (3, 7)
-    assert o.links[ModuleId(4, 0)] == (3, None)
+    the transition after the rejoin holding the lead 0.0 dead and WELCOMEd it there, so it
+    reads its held S^1 through 3 (``held`` (1, 4)); 4.0 WELCOMEd it earlier and reads it from
+    the rejoin T2 = 3. (The instant moves with the programs' timing: 2.0 s for 3 s before the
+    hold clock rode in the keep-alives, 1.24 s since.)"""
+    o = _outage_exact(builds["ca2dsing"], Reset("0.0", 1.24, 3.0))
+    assert (o.failed_at, o.rejoin) == (2, 3)
+    assert o.links[ModuleId(1, 0)] == (1, 4)
+    assert o.links[ModuleId(4, 0)] == (1, None)
 
 
 def test_a_neighbour_that_left_its_wait_after_the_boot_but_before_the_join_went_on(
     builds: dict[str, Build],
 ) -> None:
-    """ca2ddiff 0.0 off at 1.22 s for 3 s: 0.1, 1.0 and 4.0 leave their wait just after 0.0
-    boots (a dead-limit), before its JOIN reaches them: they went on (classified by their
-    WELCOME, not by the boot), 4.0 with S^1 while the others held S^2."""
-    o = _outage_exact(builds["ca2ddiff"], Reset("0.0", 1.22, 3.0))
-    assert set(o.went_on) == {ModuleId(0, 1), ModuleId(1, 0), ModuleId(4, 0)}
-    assert o.links == {ModuleId(4, 0): (1, None)}
+    """ca2ddiff 0.0 off at 1.16 s for 3 s (it boots at 4.16 s): 0.5 and 1.0 leave their wait
+    at 4.19 and 4.24 s (a dead-limit), after the boot and before its JOIN reaches them (their
+    WELCOMEs at 4.43 and 4.35 s): they went on (classified by their WELCOME, not by the boot)
+    and read their held S^1 until transition 4; 4.0, which waited for an S^2 0.0 had not sent,
+    reads S^1, the state 0.0 came back with. (1.22 s before the hold clock rode in the
+    keep-alives.)"""
+    o = _outage_exact(builds["ca2ddiff"], Reset("0.0", 1.16, 3.0))
+    assert set(o.went_on) == {ModuleId(0, 5), ModuleId(1, 0)}
+    assert o.links == {ModuleId(0, 5): (1, 4), ModuleId(1, 0): (1, 4), ModuleId(4, 0): (1, None)}
 
 
 @pytest.mark.parametrize(
     ("model", "reset", "older"),
     [
-        ("ca2ddiff", Reset("2.5", 1.0, 3.0), 1),  # 2.0 went on with S^1, 2.4 waited with S^2
-        ("ca2ddiff", Reset("2.3", 1.44, 3.0), 2),  # 2.4 went on with S^2, 2.2 waited with S^3
+        ("ca2ddiff", Reset("2.5", 2.12, 3.5), 3),  # 2.4 went on with S^3, the others waited
+        ("ca2ddiff", Reset("2.3", 1.12, 3.0), 1),  # 2.4 went on with S^1, 2.2 waited
     ],
     ids=str,
 )
@@ -192,11 +207,13 @@ def test_a_reader_that_waited_for_an_unsent_state_reads_the_one_the_module_came_
 def test_a_long_lead_outage_under_noise_where_the_module_came_back_with_an_older_state(
     builds: dict[str, Build],
 ) -> None:
-    """Traced 2026-12-03 (ca2dsing, 0.0 off 2.0-5.0 s, 1 % noise, seed 4): 0.5 waited in
-    transition 4 for the lead's S^4, which the lead had shown but not sent it; the lead came
-    back with S^3 (rejoin_with) and answered 0.5's REQ with it."""
-    o = _outage_exact(builds["ca2dsing"], Reset("0.0", 2.0, 3.0), 12, noise=0.01, seed=4)
-    assert o.rejoin_with == 3 and o.links[ModuleId(0, 5)] == (3, None)
+    """Traced 2026-12-03 (then ca2dsing, 0.0 off 2.0-5.0 s, 1 % noise, seed 4; since the hold
+    clock rides in the keep-alives 1.8-4.8 s, seed 1): neighbours waited for the lead's S^T,
+    which the lead had shown but not sent them; the lead came back with S^(T-1)
+    (rejoin_with) and answered their REQs with it."""
+    o = _outage_exact(builds["ca2dsing"], Reset("0.0", 1.8, 3.0), 12, noise=0.01, seed=1)
+    assert o.rejoin_with == 2
+    assert o.links[ModuleId(1, 0)] == (2, None) and o.links[ModuleId(4, 0)] == (2, None)
 
 
 @pytest.mark.parametrize(

@@ -100,6 +100,7 @@ def _hold_clock(plan: ModulePlan | None) -> dict[str, int | None]:
         "frame_units": plan.frame_units,
         "master_try_units": plan.master_try_units,
         "listen_try_units": plan.listen_try_units,
+        "heard_try_units": plan.heard_try_units,
         "ask_tries": plan.serve.ask_tries,
         "lack_tries": plan.serve.lack_tries,
     }

@@ -77,6 +77,7 @@ class ModulePlan:
     # pulse (SERIN units); a hold frame is FrameTime units, the same on every module
     master_try_units: int = 0
     listen_try_units: int = 0
+    heard_try_units: int = 0
     frame_units: int = 0
     timing: timing.CompileTiming = timing.DEFAULT  # the estimates' timing model
 
@@ -141,10 +142,13 @@ def _set_hold_clock(plans: list[ModulePlan]) -> None:
     t, k = plans[0].timing, plans[0].serve
     unit = t.serin_unit_ms
     frame = round(_ca_frame_ms(plans) / unit)
-    ask = round(t.ca_ask_ms(k) / unit)
-    listen = round(t.listen_ms(0.0, k, jitter=MEAN_JITTER) / unit)
+    pulse = _pulse_ms(plans[0])
+    ask = round(t.ca_ask_ms(k, pulse) / unit)
+    listen = round(t.ca_listen_ms(k) / unit)
+    heard = round(t.ca_heard_ms(k, pulse) / unit)
     for p in plans:
         p.frame_units, p.master_try_units, p.listen_try_units = frame, ask, listen
+        p.heard_try_units = heard
 
 
 def _plan(
@@ -284,7 +288,7 @@ MEAN_JITTER = 3.5
 def _ca_frame_ms(plans: list[ModulePlan]) -> float:
     """CA: one hold frame: a listen try with the robot's middle pulse (the hold clock counts
     every try's estimated length, so a frame is a length of time, not a try)."""
-    return plans[0].timing.listen_ms(_pulse_ms(plans[0]), plans[0].serve, jitter=MEAN_JITTER)
+    return plans[0].timing.ca_listen_ms(plans[0].serve) + _pulse_ms(plans[0])
 
 
 def _ca_exchange_ms(plans: list[ModulePlan]) -> float:

@@ -108,6 +108,7 @@ def render_module(plan: ModulePlan, *, probe: bool = False) -> dict[str, str]:
                 project_files=[],
                 slot_title=_title(plan, slot),
                 base=(slot - 1) * tables.L_PER_SLOT,
+                boot_slot=len(plan.rule_slots),
                 data=data[:1] if probe else data,
             )
     return out

@@ -34,17 +34,27 @@ the IFs on the header, the jump)."""
 TURNAROUND_STATEMENTS = 5
 """A slave from the end of a request to its reply's SEROUT: the checks, heard, the IFs on the
 header, the pulse before the reply."""
+CA_ASK_STATEMENTS = 31
+"""CA: a master's answered try besides its pulses, REQ and REP: its payload (Age, Encode), the
+reply's decode (Syndrome, Aged), the round's checks (Due, the next wire's keep-alive test)."""
+CA_SLAVE_TURN_STATEMENTS = 16
+"""CA: a slave from the end of a REQ to its reply's pulse: the hold clock, Syndrome, the IFs on
+the header and the payload, Aged or the store, Encode."""
+CA_LISTEN_STATEMENTS = 18
+"""CA: a listen that hears nothing, besides its pulse and its wait: frames, RANDOM, hdr, the
+tries-in-a-row tests, Due, the next wire's test."""
 END_STATEMENTS = 12
 """CA: the end of a transition: the tick, the hold and got checks, prev, the rule's lookup."""
-CA_EXCHANGE_ROUNDS = 3.5
+CA_EXCHANGE_ROUNDS = 0.6
 """CA: a transition besides its hold, in rounds of the busiest module (the sum of its usual
-tries): the hold starts at the latest neighbour state, which comes when the slowest wire around
-has met after both ends moved on. Fitted on the twin (-T 30, periods 0.475 and 0.8 s: ca1d
-about 0.10 s on a 33 ms round, 2-D 0.25 s on 66 ms; docs/compile.md "Period"); it only sets
-HoldFrames for --period and the reported estimates."""
-CA_FRAME_RATIO = 1.25
+tries): the hold runs from the module's own switch and the keep-alives carry it to the latest
+switch around (protocol/link.md §4.3), so a transition is the hold plus the latest module's
+wait for its next Due test and the switch. Fitted on the twin (-T 20, periods 0.475 and 0.7 s:
+ca1d about 30 ms on a 40 ms round, 2-D about 37 ms on 75 ms; docs/compile.md "Period"); it
+only sets HoldFrames for --period and the reported estimates."""
+CA_FRAME_RATIO = 1.04
 """CA: a hold frame's real length over its estimate (FrameTime): the hold clock leaves out the
-round's bookkeeping and the skipped keep-alives (fitted with CA_EXCHANGE_ROUNDS: 1.2-1.3)."""
+tick's bookkeeping and the skipped keep-alives (fitted with CA_EXCHANGE_ROUNDS: 1.03-1.05)."""
 GAP_STATEMENTS = 20
 """The statements between tries that the try counts above leave out (the tick bookkeeping,
 jumps between wires); calibrated on the twin's interpreter (docs/compile.md)."""
@@ -139,13 +149,27 @@ class CompileTiming:
             + self.statements(NN_STORE_STATEMENTS + packed_bytes(states) + states + TRY_STATEMENTS)
         )
 
-    def ca_ask_ms(self, k: ServeConstants) -> float:
-        """CA: a master's try besides its pulse: REQ(t), the reply wait (its jitter at the
-        mean), the statements (an answered try is about as long: the reply's bytes)."""
+    def ca_ask_ms(self, k: ServeConstants, pulse_ms: float) -> float:
+        """CA, the hold clock: a master's answered try besides its first pulse (most tries in
+        the hold are keep-alives, answered): REQ(t), the slave's turnaround and pulse, REP, the
+        master's pulse after it (``pulse_ms``: the robot's middle pulse), the statements."""
+        turnaround = self.statements(CA_SLAVE_TURN_STATEMENTS) + pulse_ms
+        return 2 * frame_ms(2, k) + turnaround + pulse_ms + self.statements(CA_ASK_STATEMENTS)
+
+    def ca_listen_ms(self, k: ServeConstants) -> float:
+        """CA, the hold clock: a listen that hears nothing besides its pulse (the jitter at
+        its mean)."""
+        return self.wait_ms(k.listen + k.jitter_units / 2) + self.statements(CA_LISTEN_STATEMENTS)
+
+    def ca_heard_ms(self, k: ServeConstants, pulse_ms: float) -> float:
+        """CA, the hold clock: what a listen that hears a REQ and answers adds to a quiet one:
+        the REQ (arriving, on average, half-way through the listen), the turnaround, the reply
+        and its pulse (``pulse_ms``: the robot's middle pulse)."""
         return (
-            frame_ms(2, k)
-            + self.wait_ms(k.reply_wait + k.jitter_units / 2)
-            + self.statements(TRY_STATEMENTS + 3)
+            2 * frame_ms(2, k)
+            + self.statements(CA_SLAVE_TURN_STATEMENTS)
+            + pulse_ms
+            - self.wait_ms(k.listen + k.jitter_units / 2) / 2
         )
 
     def listen_ms(self, pulse_ms: float, k: ServeConstants, *, jitter: float) -> float:

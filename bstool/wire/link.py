@@ -163,15 +163,53 @@ def decode_state(b: int, t: int = 0) -> int | None:
     return b & 15
 
 
+MAX_AGE = 63
+AGE_BASE = 192  # a payload value 192 + age: its syndrome (see decode_payload) is 12..15
+
+
+def encode_value(v: int, t: int) -> int:
+    """A CA REQ/REP payload byte of the value ``v``: a state 0..15, or 192 + an age 0..63.
+    Low nibble v & 15, high nibble (v & 15) ^ 15 ^ t ^ (v >> 4), so a state codes as
+    :func:`encode_state` and an age has the syndrome 12 + age // 16 (protocol/link.md §3)."""
+    if not (0 <= v <= 15 or AGE_BASE <= v <= AGE_BASE + MAX_AGE):
+        raise ValueError(f"payload value {v} is neither a state 0..15 nor an age 192..255")
+    lo = v & 15
+    return (lo ^ 15 ^ (t % TRANSITION_MOD) ^ (v >> 4)) << 4 | lo
+
+
+def syndrome(b: int, t: int) -> int:
+    """0 for a state's payload byte in a frame of ``t``, 12..15 for an age's, else garbled."""
+    return (b >> 4) ^ (b & 15) ^ 15 ^ (t % TRANSITION_MOD)
+
+
+def encode_age(age: int, t: int) -> int:
+    """A keep-alive's payload: the sender's hold clock in AgeUnits (0..63, saturated)."""
+    if not 0 <= age <= MAX_AGE:
+        raise ValueError(f"age {age} is not 0..{MAX_AGE}")
+    return encode_value(AGE_BASE + age, t)
+
+
+def decode_age(b: int, t: int) -> int | None:
+    """The age in a keep-alive's payload byte, or None if it is not an age for ``t``. A single
+    flipped bit never turns a state into an age or an age into a state (syndromes two bits
+    apart); it can turn one age into another (the hold clock is a policy, never correctness)."""
+    syn = syndrome(b, t)
+    if syn < 12:
+        return None
+    return (syn - 12) << 4 | (b & 15)
+
+
 @dataclass(frozen=True)
 class Frame:
     """A frame as a module program reads it. ``states``: CA REQ/REP one state; WELCOME (CA:
     got + 2·fresh, nb, nbp, state, prev, t; NN: the lead's state). NN REQ is the header alone:
-    its states follow READY as a packed frame (:func:`pack_states`)."""
+    its states follow READY as a packed frame (:func:`pack_states`). ``age``: a CA REQ/REP
+    keep-alive carries the sender's hold clock instead of its state (protocol/link.md §4.2)."""
 
     kind: str  # REQ REP READY TOOK WAIT BEHIND WELCOME JOIN
     t: int = 0
     states: tuple[int, ...] = ()
+    age: int | None = None
 
 
 def _bare(kind: str, nn: bool) -> bool:
@@ -182,6 +220,8 @@ def _bare(kind: str, nn: bool) -> bool:
 def encode(frame: Frame, *, nn: bool) -> bytes:
     """The bytes of ``frame`` on the wire (protocol/link.md §3)."""
     t = frame.t % TRANSITION_MOD
+    if frame.age is not None and (nn or frame.kind not in ("REQ", "REP") or frame.states):
+        raise ValueError("only a CA REQ or REP without a state carries an age")
     if frame.kind == "JOIN":
         return bytes([JOIN, JOIN])
     base = {v: k for k, v in KINDS.items()}[frame.kind]
@@ -189,6 +229,8 @@ def encode(frame: Frame, *, nn: bool) -> bytes:
         return bytes([base + t])
     if frame.kind == "WELCOME" and not nn:
         return bytes([base + t, *(encode_state(s) for s in frame.states)])
+    if frame.age is not None:
+        return bytes([base + t, encode_age(frame.age, t)])
     return bytes([base + t, *(encode_state(s, t) for s in frame.states)])
 
 
@@ -215,6 +257,10 @@ def parse(data: bytes, *, nn: bool) -> Frame | None:
     if len(data) != 1 + payload_length(kind, nn=nn):
         return None
     plain = kind == "WELCOME" and not nn
+    if not nn and kind in ("REQ", "REP"):
+        age = decode_age(data[1], t)
+        if age is not None:
+            return Frame(kind, t, (), age)
     got = [decode_state(b, 0 if plain else t) for b in data[1:]]
     if any(s is None for s in got):
         return None

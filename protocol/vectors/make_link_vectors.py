@@ -37,6 +37,18 @@ def state_byte(s: int, t: int = 0) -> int:
     return ((15 - s) ^ (t % 8)) << 4 | s
 
 
+def age_byte(age: int, t: int) -> int:
+    """§3: a keep-alive's age a (0..63) as the value 192 + a: low nibble a mod 16, high nibble
+    (a mod 16) XOR 15 XOR t XOR (12 + a div 16)."""
+    assert 0 <= age <= 63
+    low = age % 16
+    return (low ^ 15 ^ (t % 8) ^ (12 + age // 16)) << 4 | low
+
+
+def keepalive(kind: str, t: int, age: int) -> bytes:
+    return bytes([HEADERS[kind] + t % 8, age_byte(age, t)])
+
+
 def frame(kind: str, t: int, states: list[int], *, nn: bool) -> bytes:
     """§3: the bytes of a frame. CA WELCOME: six plain-coded fields (got + 2 fresh, nb, nbp,
     state, prev, t); every other payload is coded with the frame's t."""
@@ -185,13 +197,23 @@ def frames() -> dict[str, object]:
     rejected = [
         ("a REP where a REQ's payload check says t = 0 (header t = 1)", "ca", 1, "C9 78"),
         ("the check nibble not XORed with t (t = 1)", "ca", 1, "A9 87"),
-        ("check nibble wrong", "ca", 0, "A8 77"),
+        ("check nibble wrong (syndrome 9; A8 77 is a keep-alive of age 55)", "ca", 0, "A8 17"),
         ("frame too short (payload missing)", "ca", 0, "A8"),
         ("an NN REQ with a payload (the states follow READY)", "nn", 3, "AB B7 88"),
         ("READY is not a CA frame", "ca", 6, "56"),
         ("a CA WELCOME whose last field is not its header's t", "ca", 4, "DC C3 69 78 D2 E1 A5"),
         ("a JOIN with one byte lost", "ca", 0, "B8"),
         ("TOOK is not a CA frame", "ca", 2, "9A"),
+        *(
+            (
+                f"a CA REQ(3) payload of syndrome {syn} (neither a state's 0 nor an age's 12-15)",
+                "ca",
+                3,
+                f"AB {((5 ^ 15 ^ 3 ^ syn) << 4 | 5):02X}",
+            )
+            for syn in range(1, 12)
+        ),
+        ("an age in an NN frame (NN REPs are bare)", "nn", 2, "CA " + f"{age_byte(5, 2):02X}"),
     ]
     packs = [([1, 4, 9, 15, 0], 3), ([4, 11, 7], 6), ([4, 11], 6), ([9], 0), ([0, 0, 0, 0], 7)]
     states_bad = [  # every single-bit error of one packed frame, and a frame of another h
@@ -216,7 +238,7 @@ def frames() -> dict[str, object]:
     bad_welcome = frame("WELCOME", 4, [3, 9, 8, 2, 1, 5], nn=False)
     assert bad_welcome.hex(" ").upper() == rejected[6][3]
     return {
-        "format": "bstool.linkvectors/4",
+        "format": "bstool.linkvectors/5",
         "spec": "protocol/link.md",
         "headers": {**HEADERS, "JOIN": JOIN},
         "frames": [
@@ -228,6 +250,17 @@ def frames() -> dict[str, object]:
                 "bytes": _hex(frame(kind, t, states, nn=family == "nn")),
             }
             for family, kind, t, states in cases
+        ],
+        "keepalives": [
+            {"kind": kind, "t": t, "age": age, "bytes": _hex(keepalive(kind, t, age))}
+            for kind, t, age in (
+                ("REQ", 0, 0),
+                ("REP", 0, 63),
+                ("REQ", 5, 17),
+                ("REP", 7, 40),
+                ("REQ", 3, 31),
+                ("REP", 2, 48),
+            )
         ],
         "packed": [
             {"h": h, "states": states, "bytes": _hex(packed(states, h))} for states, h in packs
@@ -262,6 +295,19 @@ def frames() -> dict[str, object]:
                     {"from": "0.1", "to": "0.0", "bytes": _hex(frame("REP", 4, [2], nn=False))},
                 ],
                 "result": {"0.0 knows 0.1": 2},
+            },
+            {
+                "description": "CA keep-alive at t=4 on the same wire after the exchange: the "
+                "master L0.M0 switched about 190 ms before the slave (AgeUnit 17 units of "
+                "0.4 ms: its hold clock is at age 40, the slave's at 12); its REQ(4) carries "
+                "age 40, the slave keeps the later clock (its own, (40 + 1) x 17 being more) "
+                "and answers REP(4) with age 12; "
+                "the master sets its clock to (12 + 1) x 17 = 221 units (§4.2).",
+                "steps": [
+                    {"from": "0.0", "to": "0.1", "bytes": _hex(keepalive("REQ", 4, 40))},
+                    {"from": "0.1", "to": "0.0", "bytes": _hex(keepalive("REP", 4, 12))},
+                ],
+                "result": {"0.0 hold clock": 221, "0.1 age": 12},
             },
             {
                 "description": "NN relay at t=6 on the wire L2.M2 (master, P1) - L2.M3 (slave, "
