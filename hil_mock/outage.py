@@ -100,7 +100,11 @@ class Outage:
                 until = None
             # T_N = T with T2_N = T2 + 1 reads S^T in T2, which c still shows there: no change
             later = until is not None and self.rejoin is not None and until > self.rejoin + 1
-            if n in self.reads and (tn < t or later):
+            # with rejoin_with the reference shows S^(T_R) from T + 1 to every reader without a
+            # view of its own, so one that went on with S^T needs its view too (traced
+            # 2026-12-04: ca1d 2.3 off 4 s at 1.62 s, 2.2 read its S^3 until 7)
+            kept = self.rejoin_with is not None and tn == t
+            if n in self.reads and (tn < t or later or kept):
                 out[n] = (tn, until)
         if self.rejoin_with is not None:
             # a reader that waited for a state c had not sent it yet (T_N < T) gets the one c

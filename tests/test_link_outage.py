@@ -73,17 +73,10 @@ def _outage_exact(
         ("ca1d", Reset("2.3", 1.5, 4.0)),
         ("ca2dsing", Reset("0.0", 1.62, 4.0)),
         ("ca2dsing", Reset("2.3", 1.62, 5.0)),
-        pytest.param(
-            "ca1d",
-            Reset("2.3", 1.62, 4.0),
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="open (docs/link-redesign.md §6, 2026-12-04): 2.2 waited with S^3, 2.4 "
-                "went on with S^2 and 2.3 came back with S^2; the twin's 2.2 reads S^3 through "
-                "transition 7 as --fail-at 3 says, the composite reference (--held-by, "
-                "--rejoin-with) gives it another S^5; 1.62 and 1.66 s of 10 instants in 1.5-2.3",
-            ),
-        ),  # before the hold clock rode in the keep-alives: rejoined with 2.4 four ahead, exact
+        # 2.2 went on with S^3, 2.4 with S^2, 2.3 came back with S^2: 2.2 reads its S^3 until
+        # 7 (its own view beside rejoin_with; before the hold clock rode in the keep-alives,
+        # this instant rejoined with 2.4 four transitions ahead)
+        ("ca1d", Reset("2.3", 1.62, 4.0)),
         # neighbours that held different transitions (docs/link-redesign.md §2.4) at these
         # instants before the silence clock (protocol/link.md §4.5); offs of 4-5 s: the
         # dead-limit is 2.5-3.5 s at nominal timing

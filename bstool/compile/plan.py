@@ -292,8 +292,8 @@ def _ca_frame_ms(plans: list[ModulePlan]) -> float:
 
 
 def _ca_exchange_ms(plans: list[ModulePlan]) -> float:
-    """CA: a transition besides its hold (timing.CA_EXCHANGE_ROUNDS): the hold starts when the
-    latest neighbour state is stored."""
+    """CA: a transition besides its hold (timing.CA_EXCHANGE_ROUNDS): the wait of the module
+    that switches last for its next Due test and the switch itself."""
     busiest = max(sum(_tries(p, jitter=MEAN_JITTER)) for p in plans)
     return timing.CA_EXCHANGE_ROUNDS * busiest
 
@@ -347,8 +347,9 @@ def _nn_lead(plans: list[ModulePlan]) -> ModulePlan | None:
 
 def min_hold_frames(plans: list[ModulePlan]) -> int:
     """The protocol's floor of HoldFrames: NN the lead's floor (bstool.wire.link NN); CA
-    keepalive_rounds frames (a policy: the hold starts at the latest neighbour state, after
-    every exchange of the transition, so no handshake needs it; a servo needs time to move)."""
+    keepalive_rounds frames (a policy: a transition also waits for every neighbour state, so no
+    handshake needs the hold; a servo needs time to move; a 2-D robot keeps in step only from
+    about 25 frames, protocol/link.md §4.2)."""
     if plans[0].family == "nn":
         return wire.NN.hold_frames
     return wire.CA.keepalive_rounds

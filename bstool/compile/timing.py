@@ -48,7 +48,7 @@ END_STATEMENTS = 12
 CA_EXCHANGE_ROUNDS = 0.6
 """CA: a transition besides its hold, in rounds of the busiest module (the sum of its usual
 tries): the hold runs from the module's own switch and the keep-alives carry it to the latest
-switch around (protocol/link.md §4.3), so a transition is the hold plus the latest module's
+switch around (protocol/link.md §4.2), so a transition is the hold plus the latest module's
 wait for its next Due test and the switch. Fitted on the twin (-T 20, periods 0.475 and 0.7 s:
 ca1d about 30 ms on a 40 ms round, 2-D about 37 ms on 75 ms; docs/compile.md "Period"); it
 only sets HoldFrames for --period and the reported estimates."""

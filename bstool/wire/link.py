@@ -164,7 +164,7 @@ def decode_state(b: int, t: int = 0) -> int | None:
 
 
 MAX_AGE = 63
-AGE_BASE = 192  # a payload value 192 + age: its syndrome (see decode_payload) is 12..15
+AGE_BASE = 192  # a payload value 192 + age: its syndrome (see syndrome) is 12..15
 
 
 def encode_value(v: int, t: int) -> int:
