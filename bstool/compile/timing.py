@@ -149,12 +149,15 @@ class CompileTiming:
             + self.statements(NN_STORE_STATEMENTS + packed_bytes(states) + states + TRY_STATEMENTS)
         )
 
+    def _ca_exchange_ms(self, k: ServeConstants, pulse_ms: float) -> float:
+        """CA: REQ(t), the slave's turnaround and its pulse (``pulse_ms``), REP(t)."""
+        return 2 * frame_ms(2, k) + self.statements(CA_SLAVE_TURN_STATEMENTS) + pulse_ms
+
     def ca_ask_ms(self, k: ServeConstants, pulse_ms: float) -> float:
         """CA, the hold clock: a master's answered try besides its first pulse (most tries in
-        the hold are keep-alives, answered): REQ(t), the slave's turnaround and pulse, REP, the
-        master's pulse after it (``pulse_ms``: the robot's middle pulse), the statements."""
-        turnaround = self.statements(CA_SLAVE_TURN_STATEMENTS) + pulse_ms
-        return 2 * frame_ms(2, k) + turnaround + pulse_ms + self.statements(CA_ASK_STATEMENTS)
+        the hold are keep-alives, answered): the exchange, the master's pulse after it
+        (``pulse_ms``: the robot's middle pulse), the statements."""
+        return self._ca_exchange_ms(k, pulse_ms) + pulse_ms + self.statements(CA_ASK_STATEMENTS)
 
     def ca_listen_ms(self, k: ServeConstants) -> float:
         """CA, the hold clock: a listen that hears nothing besides its pulse (the jitter at
@@ -165,12 +168,7 @@ class CompileTiming:
         """CA, the hold clock: what a listen that hears a REQ and answers adds to a quiet one:
         the REQ (arriving, on average, half-way through the listen), the turnaround, the reply
         and its pulse (``pulse_ms``: the robot's middle pulse)."""
-        return (
-            2 * frame_ms(2, k)
-            + self.statements(CA_SLAVE_TURN_STATEMENTS)
-            + pulse_ms
-            - self.wait_ms(k.listen + k.jitter_units / 2) / 2
-        )
+        return self._ca_exchange_ms(k, pulse_ms) - self.wait_ms(k.listen + k.jitter_units / 2) / 2
 
     def listen_ms(self, pulse_ms: float, k: ServeConstants, *, jitter: float) -> float:
         """A slave's try that hears nothing: its pulse and the whole listen."""

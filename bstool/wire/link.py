@@ -156,11 +156,14 @@ def encode_state(s: int, t: int = 0) -> int:
     return ((15 - s) ^ (t % TRANSITION_MOD)) << 4 | s
 
 
+def syndrome(b: int, t: int) -> int:
+    """0 for a state's payload byte in a frame of ``t``, 12..15 for an age's, else garbled."""
+    return (b >> 4) ^ (b & 15) ^ 15 ^ (t % TRANSITION_MOD)
+
+
 def decode_state(b: int, t: int = 0) -> int | None:
     """The state in a payload byte, or None if its check nibble is wrong for ``t``."""
-    if b >> 4 != (15 - (b & 15)) ^ (t % TRANSITION_MOD):
-        return None
-    return b & 15
+    return b & 15 if syndrome(b, t) == 0 else None
 
 
 MAX_AGE = 63
@@ -175,11 +178,6 @@ def encode_value(v: int, t: int) -> int:
         raise ValueError(f"payload value {v} is neither a state 0..15 nor an age 192..255")
     lo = v & 15
     return (lo ^ 15 ^ (t % TRANSITION_MOD) ^ (v >> 4)) << 4 | lo
-
-
-def syndrome(b: int, t: int) -> int:
-    """0 for a state's payload byte in a frame of ``t``, 12..15 for an age's, else garbled."""
-    return (b >> 4) ^ (b & 15) ^ 15 ^ (t % TRANSITION_MOD)
 
 
 def encode_age(age: int, t: int) -> int:
