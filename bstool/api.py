@@ -253,9 +253,10 @@ def flash(
     announcement. ``module`` ("L.M") picks it in a build of several. Returns the
     ``ModuleReport`` (``announcement_ok``, ``summary()``); raises ``DeviceError`` subclasses.
     """
+    from bstool.compile import compile_controller
     from bstool.flash import flash_module, load_target
 
-    plans = load_target(Path(target), module=module, slot=slot).modules
+    plans = load_target(Path(target), module=module, slot=slot, compiler=compile_controller).modules
     if len(plans) != 1:  # pragma: no cover - load_target asks for a module first
         raise InputError(f"{target} has {len(plans)} modules: choose one with module='L.M'")
     return flash_module(port, plans[0], timing=timing, progress=progress, log=log, listen=listen)

@@ -34,6 +34,8 @@ MANIFEST_FILE = "manifest.json"
 CONTROLLER_FILE = "controller.json"
 """The compiled controller, copied into the build: `bstool twin BUILD` compares with it."""
 WIRING_FILE = "WIRING.md"
+PROGRESS_FILE = "flash-progress.json"
+"""Written into a build by `bstool flash --all` (which modules are done): bstool's own too."""
 SLOT_BYTES = 2048
 RECOMPILE = "recompile the controller: bstool compile best.json -o BUILD"
 
@@ -662,3 +664,19 @@ def is_build(path: str | os.PathLike[str]) -> bool:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return False
     return isinstance(obj, dict) and str(obj.get("format", "")).startswith(FORMAT_FAMILY)
+
+
+def foreign_files(path: str | os.PathLike[str]) -> list[Path]:
+    """Files in the build folder ``path`` that bstool did not write (a user's notes, say): not
+    the manifest, WIRING.md, controller.json, the flash progress file, or a file the manifest
+    names. Empty for a folder that is not a readable build."""
+    root = Path(path)
+    try:
+        manifest = from_json(_read_manifest(root), root / MANIFEST_FILE)
+    except (InputError, BuildError):
+        return []
+    own = {root / name for name in (MANIFEST_FILE, CONTROLLER_FILE, WIRING_FILE, PROGRESS_FILE)}
+    for module in manifest.modules:
+        for slot in module.slots:
+            own.update(root / f for f in (slot.file, slot.eeprom, slot.packets) if f is not None)
+    return sorted(p for p in root.rglob("*") if not p.is_dir() and p not in own)

@@ -13,8 +13,8 @@ import sys
 
 import click
 
-from bstool import __version__
 from bstool.errors import BstoolError
+from bstool.version import __version__
 
 # name -> (module, one-line help shown by `bstool --help`)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -104,7 +104,9 @@ def cli() -> None:
 def main(argv: list[str] | None = None) -> int:
     """Console entry point: user errors print one clear message and exit non-zero."""
     try:
-        cli.main(args=argv, prog_name="bstool", standalone_mode=False)
+        # standalone_mode=False returns what a command's ctx.exit(n) asked for instead of
+        # calling sys.exit: that number is the exit code (the twin's verdict, docs/cli.md)
+        returned = cli.main(args=argv, prog_name="bstool", standalone_mode=False)
     except BstoolError as exc:
         click.secho(f"Error: {exc}", fg="red", err=True)
         if exc.hint:
@@ -121,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
         return exc.exit_code
     except click.exceptions.Exit as exc:
         return exc.exit_code
-    return 0
+    return returned if isinstance(returned, int) and not isinstance(returned, bool) else 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -198,7 +198,7 @@ def load(path: str | os.PathLike[str]) -> TimingModel:
 
 def stamped(model: TimingModel, source: str) -> TimingModel:
     """``model`` marked as measured now by ``source`` (with this bstool's version)."""
-    from bstool import __version__
+    from bstool.version import __version__
 
     created = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     return replace(model, source=source, created=created, bstool_version=__version__)

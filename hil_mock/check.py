@@ -23,12 +23,12 @@ from hil_mock.twin_result import TwinResult
 class TwinCheck:
     transitions: int
     states_equal: bool
-    mismatched: list[ModuleId]  # modules whose sequence differs from the reference
-    first_mismatch: dict[str, Any] | None
+    mismatched: list[ModuleId]  # modules that showed a state other than the reference's
+    first_mismatch: dict[str, Any] | None  # the earliest such state (its module, transition)
     twin_distance: float
     sim_distance: float | None
-    period_mean: float
-    period_std: float
+    period_mean: float | None  # None: no module made two transitions (nothing to measure)
+    period_std: float | None
     period_nominal: float  # the build's --period (the reference simulation's transition time)
     period_estimate: float  # the manifest's estimated period (timing model)
     servo_gap_max: float
@@ -36,6 +36,9 @@ class TwinCheck:
     stalled: list[ModuleId]
     announcements_ok: bool
     notes: list[str] = field(default_factory=list)
+    # the states every compared module showed: R^0..R^(compared - 1) (T + 1 unless one stalled)
+    compared: int = 0
+    virtual_seconds: float = 0.0  # how long the twin ran (a stall: no state after this)
     # the stamp-timed simulator (the twin's own schedule played by ``bstool simulate``'s
     # physics, ``bstool simulate --build``): its distance and the largest path difference
     stamp_distance: float | None = None
@@ -44,11 +47,28 @@ class TwinCheck:
     # rejoin T2 read from the record: hil_mock/outage.py)
     outages: list[dict[str, Any]] = field(default_factory=list)
 
+    @property
+    def verdict(self) -> str:
+        """ "equal", "different" (a module showed a state other than the reference's),
+        "stalled" (a module stopped short of T without a wrong state), or "unchecked" (no
+        reference)."""
+        if self.mismatched:
+            return "different"
+        if self.stalled:
+            return "stalled"
+        return "equal" if self.states_equal else "unchecked"
+
     def to_json(self) -> dict[str, Any]:
         out = dict(self.__dict__)
         out["mismatched"] = [str(m) for m in self.mismatched]
         out["stalled"] = [str(m) for m in self.stalled]
-        return out
+        out["verdict"] = self.verdict
+        return {k: _finite(v) for k, v in out.items()}
+
+
+def _finite(value: Any) -> Any:
+    """NaN is not JSON: a figure that was not measured is null."""
+    return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
 def settle_seconds(build: Build) -> float:
@@ -82,19 +102,23 @@ def check(
     first = None
     off = {o.module for o in outages if o.long and o.rejoin is None}  # off at the end: dead
     stalled = [m for m in result.stalled if m not in off]
+    compared = transitions + 1
     if reference is not None:
         ref = reference[: transitions + 1]
         for mid, seq in compared_states(result.states, ref, outages).items():
             want = ref[:, mid.leg, mid.module].tolist()
-            if seq[: transitions + 1] != want:
-                mismatched.append(mid)
-                if first is None:
-                    t = next(
-                        (i for i, (a, b) in enumerate(zip(seq, want, strict=False)) if a != b),
-                        len(seq),
-                    )
-                    first = {"module": str(mid), "transition": t, "twin": seq[t : t + 5],
-                             "reference": want[t : t + 5]}  # fmt: skip
+            shown = seq[: transitions + 1]
+            compared = min(compared, len(shown))
+            t = next((i for i, (a, b) in enumerate(zip(shown, want, strict=False)) if a != b),
+                     None)  # fmt: skip
+            if t is None:  # equal as far as it went (a stalled module is counted as stalled)
+                continue
+            mismatched.append(mid)
+            if first is None or t < first["transition"]:
+                first = {"module": str(mid), "transition": t, "twin": shown[t : t + 5],
+                         "reference": want[t : t + 5]}  # fmt: skip
+    else:
+        compared = min([transitions + 1, *(len(s) for s in result.states.values())])
     mean, std = result.period_stats()
     hash8 = build.manifest.controller.hash8
     ok = all(line == announce.line(mid, hash8) for mid, line in result.announcements.items())
@@ -108,8 +132,8 @@ def check(
         first_mismatch=first,
         twin_distance=result.distance,
         sim_distance=sim_distance,
-        period_mean=mean,
-        period_std=std,
+        period_mean=mean if math.isfinite(mean) else None,
+        period_std=std if math.isfinite(std) else None,
         period_nominal=build.period,
         period_estimate=max(periods) if periods else math.nan,
         servo_gap_max=max(gaps) if gaps else math.nan,
@@ -119,6 +143,8 @@ def check(
         stamp_distance=_distance(stamp_path),
         stamp_path_diff=_path_diff(stamp_path, result.path),
         outages=[o.to_json() for o in outages],
+        compared=compared,
+        virtual_seconds=result.virtual_seconds,
     )
 
 
@@ -134,3 +160,30 @@ def _path_diff(a: np.ndarray | None, b: np.ndarray) -> float | None:
         return None
     k = min(len(a), len(b))
     return float(np.max(np.linalg.norm(a[:k] - b[:k], axis=1)))
+
+
+def verdict_line(report: TwinCheck, result: TwinResult) -> str:
+    """One line saying what the twin's states show against ``bstool states``: equal, how many
+    modules differ and from which transition, or how many stalled and where."""
+    T, total = report.transitions, len(result.states)
+    if report.verdict == "unchecked":
+        return "not compared (no controller: give --controller C.json)"
+    if report.verdict == "equal":
+        within = " (with the notes below)" if report.notes else ""
+        return f"EQUAL to `bstool states` for all {total} modules, transitions 0..{T}{within}"
+    parts = []
+    if report.mismatched and report.first_mismatch is not None:
+        parts.append(
+            f"DIFFERENT from `bstool states`: {len(report.mismatched)} of {total} modules, "
+            f"from transition {report.first_mismatch['transition']}"
+        )
+    if report.stalled:
+        reached = min(len(result.states[m]) for m in report.stalled) - 1
+        where = f"past transition {reached}" if reached >= 0 else "at all"
+        parts.append(
+            f"STALLED: {len(report.stalled)} of {total} modules showed no state {where} "
+            f"within {report.virtual_seconds:.2f} s of virtual time"
+        )
+    shown = report.compared - 1
+    span = f"transitions 0..{shown} of {T} compared" if shown >= 0 else "no transition compared"
+    return "; ".join(parts) + f" ({span})"

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bstool import __version__, buildfile, timingfile
+from bstool import buildfile, timingfile
 from bstool.compile import templates_dir
 from bstool.compile.build import compile_loaded
 from bstool.controllers import Controller
@@ -36,6 +36,7 @@ from bstool.robot import state_to_angle
 from bstool.sim.timed import ScheduleEnsemble, ScheduleModel
 from bstool.timingfile import DEFAULT as DEFAULT_TIMING
 from bstool.timingfile import TimingModel
+from bstool.version import __version__
 from hil_mock.robot import RobotTwin
 from hil_mock.schedule import CHUNK_STEPS
 from hil_mock.twin_result import NS

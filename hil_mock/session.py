@@ -15,7 +15,7 @@ import numpy as np
 
 from bstool.buildfile import Build
 from bstool.controllers import Controller, load_controller
-from bstool.errors import InputError
+from bstool.errors import DeviceError, InputError
 from bstool.moduleid import ModuleId
 from bstool.timingfile import TimingModel
 from hil_mock.check import TwinCheck, check, reference_simulator
@@ -70,7 +70,9 @@ class TwinReport:
 
     @property
     def ok(self) -> bool:
-        """States equal to the reference (trivially true without one)."""
+        """No module stalled, and the states equal the reference (when there is one)."""
+        if self.check.stalled:
+            return False
         return self.reference is None or self.check.states_equal
 
 
@@ -96,7 +98,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
             flash_status = flash_fleet(build.root, fleet)
             bad = {k: v for k, v in flash_status.items() if v != "flashed"}
             if bad:
-                raise InputError(f"flashing the twins failed: {bad}")
+                raise DeviceError(f"flashing the twins failed: {bad}")
             eeproms = dict(fleet.eeproms)
         flash_seconds = time.perf_counter() - t0
         twin = Recorder(

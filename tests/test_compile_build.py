@@ -56,11 +56,29 @@ def test_output_is_deterministic(tmp_path: Path) -> None:
 def test_module_option_and_rebuild_replaces(tmp_path: Path) -> None:
     out = tmp_path / "build"
     compile_controller(CA, out, period=0.5)
-    (out / "stale.txt").write_text("from an old build")
+    (out / buildfile.PROGRESS_FILE).write_text("{}")  # flash's own file does not block it
     compile_controller(NN, out, period=0.5, modules=["2.3", "L0.M1"])
     assert sorted(p.name for p in (out / "modules").iterdir()) == ["L0.M1", "L2.M3"]
-    assert not (out / "stale.txt").exists()
+    assert not (out / buildfile.PROGRESS_FILE).exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp folders
+
+
+def test_a_rebuild_keeps_the_users_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A file bstool did not write (the user's notes) is never deleted by a rebuild: it is
+    refused with the file's name and a hint; --force replaces the folder whole (issue 28 §5)."""
+    out = tmp_path / "build"
+    compile_controller(CA, out, period=0.5)
+    (out / "notes.txt").write_text("servo 2.3 is loose")
+    (out / "modules" / "L0.M0" / "scope.csv").write_text("t,v")
+    before = _tree(out)
+    assert main(["compile", str(CA), "-o", str(out), "--period", "0.5", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "notes.txt" in err and "scope.csv" in err and "--force" in err
+    assert _tree(out) == before
+    assert main(["compile", str(CA), "-o", str(out), "--period", "0.5", "-q", "--force"]) == 0
+    assert not (out / "notes.txt").exists() and buildfile.is_build(out)
 
 
 def test_unknown_module(tmp_path: Path) -> None:

@@ -79,3 +79,34 @@ def test_cli_cluster_matches_local(
 def test_cluster_unreachable() -> None:
     with pytest.raises(InputError, match="cannot connect to the Dask scheduler at tcp://"):
         DaskEvaluator("tcp://127.0.0.1:1", ToyFitness(), timeout=0.5)
+
+
+def test_a_cluster_without_workers_says_so_once_and_keeps_waiting() -> None:
+    """Every worker gone: after the notice delay the batch says so once, keeps waiting, and
+    finishes with the same result when a worker comes back (issue 28 §5)."""
+    import threading
+    import time
+
+    seqs = list(np.random.default_rng(1).integers(0, 16, (4, 5, 5, 6), dtype=np.uint8))
+    told: list[str] = []
+    with (
+        distributed.LocalCluster(
+            n_workers=0, threads_per_worker=1, processes=False, dashboard_address=None
+        ) as empty,
+        distributed.Client(empty) as client,
+    ):
+        ev = DaskEvaluator(
+            client, ToyFitness(), notify=told.append, no_worker_notice_s=0.5, poll_s=0.1
+        )
+        out: list[list[float]] = []
+        worker = threading.Thread(target=lambda: out.append(ev(seqs)))
+        worker.start()
+        deadline = time.monotonic() + 30
+        while not told and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(0.5)  # still waiting, and said only once
+        assert len(told) == 1 and worker.is_alive() and not out
+        assert told[0].startswith("no Dask workers connected to ") and "waiting" in told[0]
+        empty.scale(1)
+        worker.join(timeout=60)
+        assert out == [ToyEvaluator()(seqs)] and len(told) == 1

@@ -87,6 +87,7 @@ def _demo(
     from bstool.compile import compile_controller
     from bstool.controllers import load_controller
     from bstool.moduleid import parse_module
+    from hil_mock.check import verdict_line
     from hil_mock.session import TwinOptions, run_twin
 
     say = click.echo
@@ -116,17 +117,20 @@ def _demo(
     say("")
     say(f"{'':26}{'simulator':>14}{'twin (stamps)':>18}")
     say(f"{'distance (cm)':26}{sim_distance * 100:14.2f}{run.distance * 100:18.2f}")
-    states_text = "equal" if rep.states_equal else f"{len(rep.mismatched)} modules differ"
+    states_text = {"equal": "equal", "stalled": f"{len(rep.stalled)} modules stalled"}.get(
+        rep.verdict, f"{len(rep.mismatched)} modules differ"
+    )
     say(f"{'states, ' + str(transitions) + ' transitions':26}{'reference':>14}{states_text:>18}")
-    say(f"{'transition period (s)':26}{build.period:14.3f}"
-        f"{rep.period_mean:12.3f} ±{rep.period_std:.3f}")  # fmt: skip
+    period = ("not measured" if rep.period_mean is None or rep.period_std is None
+              else f"{rep.period_mean:.3f} ±{rep.period_std:.3f}")  # fmt: skip
+    say(f"{'transition period (s)':26}{build.period:14.3f}{period:>18}")
     say(f"{'longest servo gap (ms)':26}{rep.servo_gap_estimate * 1000:14.1f}"
         f"{rep.servo_gap_max * 1000:18.1f}")  # fmt: skip
     announced = "all correct" if rep.announcements_ok else "WRONG"
     say(f"{'start-up announcements':26}{'':14}{announced:>18}")
     say(f"{'twin speed':26}{'':14}{run.virtual_seconds / report.twin_seconds:15.1f}× real time")
-    if rep.first_mismatch:
-        say(f"first difference: {rep.first_mismatch}")
+    if not rep.states_equal:
+        say(f"states: {verdict_line(rep, run)}")
     say("")
     say("The states are the exact check. Distances agree only roughly: the stamps keep their own")
     say("clocks (the period above), and contact-rich walking amplifies a few ms of timing after")

@@ -234,7 +234,12 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
         )
     try:
         result = execute(
-            plan, workers=workers, cluster=cluster, on_generation=show, schedule_model=schedule
+            plan,
+            workers=workers,
+            cluster=cluster,
+            on_generation=show,
+            schedule_model=schedule,
+            on_notice=lambda message: bar.write(f"warning: {message}", file=sys.stderr),
         )
     except EvolveInterrupted as exc:
         bar.close()

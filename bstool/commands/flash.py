@@ -82,7 +82,11 @@ def command(
         raise InputError("give the port: --port /dev/ttyUSB0 (or auto, or a URL)")
     if ports_file is not None and not every and module is None:
         every = True
-    plan_target = load_target(target, module=module, slot=slot, every_module=every)
+    from bstool.compile import compile_controller  # jinja and the templates: only when needed
+
+    plan_target = load_target(
+        target, module=module, slot=slot, every_module=every, compiler=compile_controller
+    )
     timing = _timing(attempts)
 
     def say(msg: str) -> None:

@@ -197,13 +197,9 @@ def _parse_cut(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId, 
 
 
 def _print(report: TwinCheck, result: TwinResult) -> None:
-    T = report.transitions
-    if report.sim_distance is not None or report.mismatched or report.states_equal:
-        verdict = "EQUAL to" if report.states_equal else "DIFFERENT from"
-        within = " (with the notes below)" if report.notes else ""
-        click.echo(
-            f"states:     every module's {T + 1} states are {verdict} `bstool states`{within}"
-        )
+    from hil_mock.check import verdict_line  # imports mujoco: after the GL backend is chosen
+
+    click.echo(f"states:     {verdict_line(report, result)}")
     for note in report.notes:
         click.echo(f"            note: {note}")
     if report.first_mismatch:
@@ -220,9 +216,12 @@ def _print(report: TwinCheck, result: TwinResult) -> None:
         if report.sim_distance is not None:
             line += f", simulator {report.sim_distance * 100:.2f} cm"
         click.echo(line)
-    click.echo(f"period:     {report.period_mean:.3f} s ± {report.period_std:.3f} "
-               f"(manifest estimate {report.period_estimate:.3f} s, "
-               f"reference {report.period_nominal:.3f} s)")  # fmt: skip
+    estimates = (f"(manifest estimate {report.period_estimate:.3f} s, "
+                 f"reference {report.period_nominal:.3f} s)")  # fmt: skip
+    if report.period_mean is None or report.period_std is None:
+        click.echo(f"period:     not measured: no module made two transitions {estimates}")
+    else:
+        click.echo(f"period:     {report.period_mean:.3f} s ± {report.period_std:.3f} {estimates}")
     click.echo(f"servo gaps: longest {report.servo_gap_max * 1000:.1f} ms "
                f"(manifest estimate {report.servo_gap_estimate * 1000:.1f} ms)")  # fmt: skip
     click.echo(f"stalled:    {', '.join(map(str, report.stalled)) or 'none'}")

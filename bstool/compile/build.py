@@ -276,6 +276,16 @@ def check_output(
             hint="choose an empty or new folder with -o (bstool replaces only its own builds), "
             "or add --force to replace it",
         )
+    foreign = [] if force else buildfile.foreign_files(out)
+    if foreign:
+        names = ", ".join(str(f.relative_to(out)) for f in foreign[:5])
+        more = f" and {len(foreign) - 5} more" if len(foreign) > 5 else ""
+        raise InputError(
+            f"the build folder {out} holds files bstool did not write ({names}{more}); "
+            "compiling replaces the folder whole and would delete them",
+            hint="move them out of the build, choose another folder with -o, or add --force "
+            "to delete them",
+        )
     outputs.check_dir(out, "output folder", force=True, protect=tuple(protect))
 
 

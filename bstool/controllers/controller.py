@@ -16,12 +16,13 @@ from typing import Any, NoReturn
 import numpy as np
 import numpy.typing as npt
 
-from bstool import __version__, fileio
+from bstool import fileio
 from bstool.controllers.angles import K
 from bstool.controllers.reference import MODELS, NN_MODELS, ca_neighbours, nn_initial_reference
 from bstool.controllers.sequences import ca_sequences, nn_continue, nn_sequences
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
+from bstool.version import __version__
 
 FORMAT = "bstool.controller/1"
 RULE_SIZE = K**3

@@ -20,12 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from bstool import __version__, fileio
+from bstool import fileio
 from bstool.controllers import save_controller
 from bstool.errors import InputError
 from bstool.evolve.engine import GAParams, HistoryRow, RunState
 from bstool.evolve.fitness import FitnessCache
 from bstool.evolve.problem import Problem
+from bstool.version import __version__
 
 CHECKPOINT = "checkpoint.npz"
 BEST = "best.json"

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Sequence
+import time
+import warnings
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -30,8 +32,21 @@ def evaluate_chunk(factory: EvaluatorFactory, chunk: np.ndarray) -> list[float]:
     return [float(x) for x in built[factory](list(chunk))]
 
 
+#: seconds without a worker before a waiting batch says so (once per outage)
+NO_WORKER_NOTICE_S = 30.0
+
+
+def _warn(message: str) -> None:
+    warnings.warn(message, RuntimeWarning, stacklevel=3)
+
+
 class DaskEvaluator:
-    """An evaluator that spreads each batch over the cluster at ``address`` (or a Client)."""
+    """An evaluator that spreads each batch over the cluster at ``address`` (or a Client).
+
+    A batch waits for as long as it takes (a worker that comes back finishes it, with the same
+    result), but after ``no_worker_notice_s`` with no worker connected it tells ``notify``
+    once (default: a ``RuntimeWarning``), so a run never waits for ever without a word.
+    """
 
     def __init__(
         self,
@@ -39,6 +54,10 @@ class DaskEvaluator:
         factory: EvaluatorFactory,
         chunk: int | None = None,
         timeout: float = 20.0,
+        *,
+        notify: Callable[[str], None] | None = None,
+        no_worker_notice_s: float = NO_WORKER_NOTICE_S,
+        poll_s: float = 1.0,
     ) -> None:
         try:
             from dask.distributed import Client
@@ -61,6 +80,12 @@ class DaskEvaluator:
             self._own = True
         self.factory = factory
         self.chunk = chunk
+        self.address = address if isinstance(address, str) else self.client.scheduler.address
+        self.notify = notify or _warn
+        self.no_worker_notice_s = no_worker_notice_s
+        self.poll_s = poll_s
+        self._alone_since: float | None = None  # when the last worker left (None: some are here)
+        self._told = False
 
     def _chunk_size(self, count: int) -> int:
         if self.chunk:
@@ -75,8 +100,34 @@ class DaskEvaluator:
         size = self._chunk_size(len(arr))
         chunks = [arr[i : i + size] for i in range(0, len(arr), size)]
         futures = self.client.map(evaluate_chunk, [self.factory] * len(chunks), chunks, pure=False)
+        self._wait(futures)
         results = self.client.gather(futures)
         return [x for part in results for x in part]
+
+    def _wait(self, futures: list[Any]) -> None:
+        from dask.distributed import wait
+
+        while True:
+            try:
+                wait(futures, timeout=self.poll_s)
+                return
+            except TimeoutError:
+                self._check_workers()
+
+    def _check_workers(self) -> None:
+        """Say once when no worker has been connected for ``no_worker_notice_s``."""
+        if self.client.nthreads():
+            self._alone_since, self._told = None, False
+            return
+        now = time.monotonic()
+        if self._alone_since is None:
+            self._alone_since = now
+        if not self._told and now - self._alone_since >= self.no_worker_notice_s:
+            self._told = True
+            self.notify(
+                f"no Dask workers connected to {self.address}; waiting (start one with "
+                f"`dask worker {self.address}`)"
+            )
 
     def close(self) -> None:
         if self._own:

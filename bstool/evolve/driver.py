@@ -257,8 +257,10 @@ def execute(
     cluster: Any = None,
     on_generation: Callable[[Generation], None] | None = None,
     schedule_model: ScheduleSource | None = None,
+    on_notice: Callable[[str], None] | None = None,
 ) -> EvolveResult:
-    """Run ``plan`` to its end. Physics uses ``workers`` threads (default: the usable CPUs;
+    """Run ``plan`` to its end. ``on_notice`` gets what a run has to say while it waits (a
+    cluster with no workers; default: a ``RuntimeWarning``). Physics uses ``workers`` threads (default: the usable CPUs;
     1 per Dask thread with ``cluster``, an address or a ``dask.distributed.Client``).
     A stamp-timed plan needs ``schedule_model`` (``hil_mock.schedule_model.schedule_model``
     of the plan's model and period: ``bstool evolve --stamp-timed`` derives it)."""
@@ -281,7 +283,7 @@ def execute(
     if cluster:
         from bstool.evolve.cluster import DaskEvaluator
 
-        evaluator = DaskEvaluator(cluster, factory)
+        evaluator = DaskEvaluator(cluster, factory, notify=on_notice)
     else:
         evaluator = factory.build()
 

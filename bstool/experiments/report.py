@@ -14,7 +14,7 @@ from typing import Any
 import jinja2
 import numpy as np
 
-from bstool import __version__, fileio, outputs
+from bstool import fileio, outputs
 from bstool.controllers import Controller
 from bstool.errors import InputError
 from bstool.experiments import common, mobility
@@ -22,6 +22,7 @@ from bstool.experiments.extrapolate import reinit_states
 from bstool.experiments.mobility import SingleFaults, single_failures
 from bstool.experiments.paths import distance_curve, path_shape
 from bstool.experiments.robustness import perturbation_spread, rotation_spread
+from bstool.version import __version__
 
 Progress = Callable[[str], None]
 ScheduleFor = Callable[[Controller], Any]

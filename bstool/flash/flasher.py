@@ -14,8 +14,8 @@ from typing import Any
 
 import serial
 
-from bstool import fileio
-from bstool.errors import BstoolError, DeviceError
+from bstool import buildfile, fileio
+from bstool.errors import DeviceError, InputError
 from bstool.flash.errors import AnnouncementError, FlashInterrupted, PortError
 from bstool.flash.port import open_port
 from bstool.flash.session import Programmer, Progress, SlotResult, Timing
@@ -23,7 +23,7 @@ from bstool.flash.target import ModulePlan, Target
 from bstool.moduleid import ModuleId, parse_module
 from bstool.wire import programming as P
 
-PROGRESS_FILE = "flash-progress.json"
+PROGRESS_FILE = buildfile.PROGRESS_FILE
 PROGRESS_FORMAT = "bstool.flash-progress/1"
 
 
@@ -164,7 +164,7 @@ def read_ports_file(path: str | Path) -> dict[ModuleId, str]:
     """``{"L0.M0": "/dev/ttyUSB0", "1.2": "bstwin://L1.M2", ...}`` -> module -> port."""
     data = fileio.read_json(path, "ports file")
     if not isinstance(data, dict) or not all(isinstance(v, str) for v in data.values()):
-        raise BstoolError(
+        raise InputError(
             f"{path}: expected a JSON object module -> port", hint='e.g. {"L0.M0": "/dev/ttyUSB0"}'
         )
     return {parse_module(k): v for k, v in data.items()}

@@ -8,6 +8,7 @@ format) and each slot image is checked against the manifest's sha256.
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -72,14 +73,21 @@ def parse_packets(data: bytes, where: str) -> list[bytes]:
     return records
 
 
+#: builds a controller file into a build folder: ``compiler(controller, out, modules=[...])``
+#: (``bstool.compile.compile_controller``; flash sits beside compile, so its caller hands it)
+Compiler = Callable[..., object]
+
+
 def load_target(
     path: str | Path,
     *,
     module: str | None = None,
     slot: int | None = None,
     every_module: bool = False,
+    compiler: Compiler | None = None,
 ) -> Target:
-    """Resolve TARGET into module plans; ``module``/``slot`` narrow it down."""
+    """Resolve TARGET into module plans; ``module``/``slot`` narrow it down. A controller file
+    is compiled first with ``compiler`` (without one it is refused: compile it first)."""
     p = Path(path)
     if not p.exists():
         raise InputError(
@@ -92,7 +100,7 @@ def load_target(
             raise InputError("--all needs a build directory, not a .bsx file")
         target = _from_bsx(p, module)
     else:
-        target = _from_controller(p, module, every_module)
+        target = _from_controller(p, module, every_module, compiler)
     if slot is not None:
         for plan in target.modules:
             chosen = [s for s in plan.slots if s.slot == slot]
@@ -162,7 +170,9 @@ def _from_bsx(path: Path, module: str | None) -> Target:
     return Target([ModulePlan(mid, slots)])
 
 
-def _from_controller(path: Path, module: str | None, every_module: bool) -> Target:
+def _from_controller(
+    path: Path, module: str | None, every_module: bool, compiler: Compiler | None
+) -> Target:
     obj = fileio.read_json(path, "controller file")
     if not (isinstance(obj, dict) and str(obj.get("format", "")).startswith("bstool.controller")):
         raise InputError(
@@ -176,11 +186,14 @@ def _from_controller(path: Path, module: str | None, every_module: bool) -> Targ
             hint="add --module L.M (e.g. --module 0.0), or compile it and flash the build "
             "with --all",
         )
-    from bstool.compile import compile_controller  # jinja and the templates: only when needed
-
+    if compiler is None:
+        raise InputError(
+            f"{path} is a controller file: compile it first",
+            hint=f"bstool compile {path} -o build/, then flash build/",
+        )
     tmp = tempfile.TemporaryDirectory(prefix="bstool-flash-")
     build = Path(tmp.name) / "build"
-    compile_controller(path, build, modules=[module] if module and not every_module else [])
+    compiler(path, build, modules=[module] if module and not every_module else [])
     target = _from_build(build, module, every_module)
     target.keep.append(tmp)
     return target
