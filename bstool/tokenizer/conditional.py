@@ -3,6 +3,8 @@
 Runs on the element list before any declaration: the lines of branches not taken, and the
 directive lines themselves, are cancelled. Expressions may use numbers, #DEFINE'd names,
 $STAMP / $PBASIC / $PORT and the module names (BS2SX = 4); undefined names count as 0.
+A #SELECT line is checked with the constant-expression rule (``_cc_select_check``); its
+expression is compiled with the #IF parser only as part of each #CASE test.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from bstool.tokenizer import tokens
-from bstool.tokenizer.declarations import Declarations
+from bstool.tokenizer.declarations import CONSTANT_KINDS, CONSTANT_OPS, Declarations
 from bstool.tokenizer.diagnostics import Failure
 from bstool.tokenizer.expressions import Bits
 from bstool.tokenizer.lexer import OP_EQ, K
@@ -32,6 +34,8 @@ _BINARY = {
     int(Binary.GT): lambda a, b: 0xFFFF if a > b else 0,
     int(Binary.LT): lambda a, b: 0xFFFF if a < b else 0,
 }
+# what may stand as a term of a #SELECT expression (besides a name declared nowhere)
+_SELECT_TERMS = (*CONSTANT_KINDS, K.CCCONST)
 
 
 @dataclass
@@ -208,13 +212,49 @@ class Conditional(Declarations):
             raise self.fail(218)
         block = _CCBlock(select=True, element=self.idx - 1, exp_idx=self.idx)
         self.cc.append(block)
-        self._cc_eval()
+        self._cc_select_check()
         if self.get().kind is not K.END:
             raise self.fail(129)
         el = self.get()
         if not (el.kind is K.CCDIRECTIVE and el.value == "CASE"):
             raise self.fail(219)
         self.idx -= 1
+
+    def _cc_select_check(self) -> None:
+        """Check a #SELECT expression as Parallax does: with its constant-expression rule in
+        the #SELECT variant (TOK ``ResolveConstant`` called from ``CompileCCSelect``), not
+        with the #IF parser.
+
+        The expression is ``term {op term}``, ``op`` one of the CON operators (+ - * / << >>
+        & | ^), read left to right until the next element is not one of them (the caller then
+        wants the line end: 129). A term is a number, a #DEFINE'd name, a directive or module
+        name, or a name declared nowhere (0), after at most one binary operator (any, taken
+        as '-'). Anything else where a term belongs - '(', a unary operator, NOT, a
+        variable, a keyword, a second prefix operator, the line end - is 225 at it; a name
+        that CON/VAR/PIN/DATA declare is 195; dividing by a term worth 0 is 113 at the term.
+        Only the check is done here: each #CASE compiles the expression again with the #IF
+        parser, which rejects a prefix operator other than '-' (188) at that #CASE.
+        """
+        operation = int(Binary.ADD)
+        while True:
+            el = self.get()
+            if el.kind is K.BINOP:  # Parallax reads any operator here as '-'
+                el = self.get()
+            if el.kind in _SELECT_TERMS:
+                value = int(el.value) & 0xFFFF
+            elif el.kind is K.UNDEF:
+                if el.name in self.declared:
+                    raise self.fail(195)
+                value = 0
+            else:
+                raise self.fail(225)
+            if operation == Binary.DIV and value == 0:
+                raise self.fail(113)
+            op = self.peek()
+            if op.kind is not K.BINOP or int(op.value) not in CONSTANT_OPS:
+                return
+            operation = int(op.value)
+            self.idx += 1
 
     def _cc_case(self) -> None:
         if not any(b.select for b in self.cc):

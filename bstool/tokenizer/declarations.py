@@ -16,7 +16,7 @@ from bstool.tokenizer.image import DEFINED_DATA
 from bstool.tokenizer.lexer import OP_SUB, Element, K
 
 # operators allowed in a constant declaration, as functions of two 16-bit words
-_CONSTANT_OPS = {
+CONSTANT_OPS = {
     int(tokens.Binary.SHL): lambda a, b: a << min(b, 16),
     int(tokens.Binary.SHR): lambda a, b: a >> min(b, 16),
     int(tokens.Binary.AND): lambda a, b: a & b,
@@ -30,7 +30,7 @@ _CONSTANT_OPS = {
 _DIV = int(tokens.Binary.DIV)
 # RAM a program's VAR declarations may take: all of it but INS, OUTS and DIRS
 _USER_RAM_BITS = tokens.RAM_VARIABLE_BYTES * 8
-_CONSTANT_KINDS = (K.CONST, K.PINNUM, K.DIRECTIVE, K.TARGET)
+CONSTANT_KINDS = (K.CONST, K.PINNUM, K.DIRECTIVE, K.TARGET)
 _BITS_PER = {0: 1, 1: 4, 2: 8, 3: 16}
 
 
@@ -70,7 +70,7 @@ class Declarations(Compiler):
         value, resolved = self._constant_term(final)
         while True:
             op = self.peek()
-            fold = _CONSTANT_OPS.get(int(op.value)) if op.kind is K.BINOP else None
+            fold = CONSTANT_OPS.get(int(op.value)) if op.kind is K.BINOP else None
             if fold is None:
                 return value, resolved
             self.idx += 1
@@ -88,7 +88,7 @@ class Declarations(Compiler):
             if el.value != OP_SUB:
                 raise self.fail(112)
             el = self.get()
-        if el.kind in _CONSTANT_KINDS:
+        if el.kind in CONSTANT_KINDS:
             value, known = int(el.value), True
         elif el.kind is K.UNDEF:
             if final:

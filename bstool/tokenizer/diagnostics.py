@@ -139,6 +139,8 @@ HINTS: dict[int, str] = {
     169: "close the loop with NEXT",
     170: "close the loop with LOOP",
     174: "write the label as 'name:'",
+    225: "#SELECT takes numbers, #DEFINE'd names, $STAMP/$PBASIC and module names joined by"
+    " + - * / << >> & | ^ (each may start with '-'); no parentheses or other operators",
 }
 
 
