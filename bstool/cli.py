@@ -61,6 +61,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "rotate": ("bstool.commands.rotate", "Shift a controller's legs to turn its heading."),
     "report": ("bstool.commands.report", "HTML report comparing evolve runs and controllers."),
+    "campaign": (
+        "bstool.commands.campaign",
+        "Evolve every model and seed of a plan, analyse the runs, report the paper's claims.",
+    ),
 }
 
 

@@ -212,26 +212,7 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
         )
         bar.update(1)
 
-    schedule = None
-    if plan.stamp_timed:
-        from bstool import timingfile
-        from hil_mock.schedule_model import REPRESENTATIVES, schedule_model
-
-        if not quiet:
-            builds = plan.schedule_builds or REPRESENTATIVES
-            click.echo(
-                f"fitting the schedule model: {builds} builds of random {state.problem.model}"
-                " controllers on the twin (a few seconds each)",
-                err=True,
-            )
-        schedule = schedule_model(
-            state.problem.model,
-            period=plan.period,
-            legs=state.problem.legs,
-            modules=state.problem.modules,
-            timing=None if plan.timing_file is None else timingfile.load(plan.timing_file),
-            builds=plan.schedule_builds,
-        )
+    schedule = fit_schedule(plan, quiet) if plan.stamp_timed else None
     try:
         result = execute(
             plan,
@@ -248,6 +229,30 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
     bar.close()
     if not quiet:
         click.echo(summary(result))
+
+
+def fit_schedule(plan: Plan, quiet: bool) -> Any:
+    """The schedule model a stamp-timed run is scored on, fitted on the twin from builds of
+    random controllers of its model (also used by ``bstool campaign``)."""
+    from bstool import timingfile
+    from hil_mock.schedule_model import REPRESENTATIVES, schedule_model
+
+    state = plan.state
+    if not quiet:
+        builds = plan.schedule_builds or REPRESENTATIVES
+        click.echo(
+            f"fitting the schedule model: {builds} builds of random {state.problem.model}"
+            " controllers on the twin (a few seconds each)",
+            err=True,
+        )
+    return schedule_model(
+        state.problem.model,
+        period=plan.period,
+        legs=state.problem.legs,
+        modules=state.problem.modules,
+        timing=None if plan.timing_file is None else timingfile.load(plan.timing_file),
+        builds=plan.schedule_builds,
+    )
 
 
 def summary(result: EvolveResult) -> str:

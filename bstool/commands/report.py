@@ -42,7 +42,9 @@ import click
               "(default: compile's).")  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace OUT even if it is not an earlier report.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar or messages.")
+@click.pass_context
 def command(
+    ctx: click.Context,
     inputs: tuple[str, ...],
     out: str,
     transitions: int,
@@ -56,10 +58,32 @@ def command(
 ) -> None:
     """Compare INPUTS (evolve run directories or controller files): fitness curves, disc paths,
     mobility under single failures, distance beyond MAX_TRANS, spread over leg rotations, and
-    a table of the numbers. Open OUT/index.html in any browser (no network needed)."""
+    a table of the numbers. Open OUT/index.html in any browser (no network needed).
+
+    Given one campaign folder (made by `bstool campaign`), writes that campaign's report,
+    DIR/report unless -o is given: the same page the campaign ends with (docs/campaign.md).
+    """
+    from bstool.campaign.runner import is_campaign
     from bstool.errors import InputError
     from bstool.experiments import progress
     from bstool.experiments.report import build_report
+
+    if len(inputs) == 1 and is_campaign(inputs[0]):
+        from click.core import ParameterSource
+
+        given = [
+            f"--{name.replace('_', '-')}"
+            for name in ("transitions", "extrapolate", "multi_samples", "stamp_timed", "period")
+            if ctx.get_parameter_source(name) is not ParameterSource.DEFAULT
+        ]
+        if given:
+            raise InputError(
+                f"{inputs[0]} is a campaign: its report takes {', '.join(given)} from its plan",
+                hint="drop them, or change the campaign's plan.toml",
+            )
+        explicit = ctx.get_parameter_source("out") is not ParameterSource.DEFAULT
+        _campaign(inputs[0], out if explicit else None, workers, force, quiet)
+        return
 
     if period is not None and not stamp_timed:
         raise InputError("--period only applies with --stamp-timed", hint="add --stamp-timed")
@@ -97,5 +121,33 @@ def command(
             runs_total=bar.total,
             schedule_for=schedule_for,
             evaluation=evaluation,
+        )
+    click.echo(f"report: {index}")
+
+
+def _campaign(folder: str, out: str | None, workers: int | None, force: bool, quiet: bool) -> None:
+    """The report of a campaign folder (its analyses computed first where not cached)."""
+    from bstool.campaign import analyses, report
+    from bstool.campaign import plan as cp
+    from bstool.commands.campaign import analysis_schedule, evolve_settings
+    from bstool.experiments import progress
+
+    settings = evolve_settings()
+    plan = cp.load(f"{folder}/{cp.PLAN_FILE}", settings)
+    with progress.bar("report", None, quiet=quiet) as bar:
+
+        def say(msg: str) -> None:
+            if progress.enabled(quiet):
+                bar.describe(msg)
+
+        index = report.build(
+            folder,
+            plan,
+            settings,
+            out=out,
+            force=force,
+            workers=workers,
+            schedule_for=analysis_schedule,
+            progress=analyses.Progress(bar.total, bar, say),
         )
     click.echo(f"report: {index}")

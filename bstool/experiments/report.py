@@ -110,7 +110,7 @@ def build_report(
         for e in entries:
             c = e.loaded.controller
             with BatchEvaluator(e.loaded.spec, workers=workers) as ev:
-                run = _runner(ev, None if schedule_for is None else schedule_for(c), runs_done)
+                run = batch_runner(ev, None if schedule_for is None else schedule_for(c), runs_done)
                 evaluate = mobility.distances_of(run)
                 say(f"{e.name}: path and extrapolation")
                 plain, reinit = run(
@@ -195,7 +195,7 @@ def build_report(
     return out / "index.html"
 
 
-def _runner(
+def batch_runner(
     ev: Any, schedule_model: Any, progress: Callable[[int], None] | None
 ) -> Callable[[Sequence[np.ndarray]], list[Any]]:
     """State sequences → SimResults: plain, or stamp-timed with ``schedule_model``."""
