@@ -46,6 +46,14 @@ def test_the_shipped_plans() -> None:
     assert len(small.seeds) == 2 and len(small.models) >= 2
 
 
+def test_the_paper_plan_is_the_campaigns() -> None:
+    """examples/paper.toml is campaigns/paper/plan.toml (where that folder is present)."""
+    running = ROOT / "campaigns" / "paper" / "plan.toml"
+    if not running.exists():
+        pytest.skip("no campaigns/paper here")
+    assert running.read_bytes() == (ROOT / "examples" / "paper.toml").read_bytes()
+
+
 def test_seed_major_order() -> None:
     plan = parse(HEAD)
     assert [r.name for r in plan.runs()] == ["nnsin-s1", "ca1d-s1", "nnsin-s2", "ca1d-s2"]

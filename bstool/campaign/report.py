@@ -219,7 +219,80 @@ def build(
         }
         fileio.write_text(tmp / "index.html", _render(context))
         fileio.write_json(tmp / "report.json", {"format": FORMAT, **context})
+        fileio.write_text(tmp / "tables.md", markdown(context))
     return target / "index.html"
+
+
+def _md_row(cells: Sequence[Any]) -> str:
+    return "| " + " | ".join(str(c) for c in cells) + " |"
+
+
+def _p(p: float | None) -> str:
+    return "—" if p is None else (f"{p:.3f}" if p >= 0.001 else f"{p:.1e}")
+
+
+def markdown(context: Mapping[str, Any]) -> str:
+    """The report's tables in Markdown, for docs/results.md: the claims with their
+    statistics, the models (mean [95 % interval] over the seeds) and the runs."""
+    lines = [
+        f"Campaign {context['folder']}: {context['finished']} of {context['total']} runs "
+        f"finished; bstool {context['version']}, {context['made']}.",
+        "",
+        "## The paper's claims",
+        "",
+        _md_row(["claim", "paper", "comparison", "first", "second", "U", "p", "row", "verdict"]),
+        "|" + "---|" * 9,
+    ]
+    for c in context["claims"]:
+        rows = c["rows"] or [None]
+        for i, r in enumerate(rows):
+            head = [f"{c['key']} ({c['where']})", c["paper"]] if i == 0 else ["", ""]
+            verdict = c["verdict"] if not c["missing"] else f"not tested: {c['missing']}"
+            if r is None:
+                lines.append(_md_row([*head, "—", "—", "—", "—", "—", "—", verdict]))
+                continue
+            t = r["test"]
+            lines.append(
+                _md_row(
+                    [
+                        *head,
+                        r["label"],
+                        _fmt(r["a"], c["scale"], c["digits"]),
+                        "—" if r["b"] is None else _fmt(r["b"], c["scale"], c["digits"]),
+                        "—" if t is None else f"{t['u']:.1f}",
+                        _p(None if t is None else t["p"]),
+                        r["verdict"],
+                        f"**{verdict}**" if i == 0 else "",
+                    ]
+                )
+            )
+    cols = context["columns"]
+    lines += [
+        "",
+        "## Per model (mean [95 % interval] over the seeds)",
+        "",
+        _md_row(["model", "runs", *(c[1] for c in cols)]),
+        "|" + "---|" * (len(cols) + 2),
+    ]
+    for m in context["models"]:
+        cells = [_fmt(m["cells"][c[0]], c[2], c[3]) for c in cols]
+        lines.append(_md_row([m["model"], m["runs"], *cells]))
+    lines += [
+        "",
+        "## Per run",
+        "",
+        _md_row(["run", "generations", *(c[1] for c in cols), "wall time"]),
+        "|" + "---|" * (len(cols) + 3),
+    ]
+    for r in context["runs"]:
+        metrics = r.get("metrics") or {}
+        cells = []
+        for key, _, scale, digits in cols:
+            v = metrics.get(key)
+            cells.append("—" if v is None else f"{v * scale:.{digits}f}")
+        lines.append(_md_row([r["name"], r["generations"], *cells, r["wall"]]))
+    lines += ["", f"Campaign wall time: {context['campaign_wall']}.", ""]
+    return "\n".join(lines)
 
 
 def notes(plan: cp.CampaignPlan) -> list[str]:

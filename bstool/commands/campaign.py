@@ -97,6 +97,8 @@ def command(
     resumes from its checkpoint, and nothing is computed twice. A folder holding another
     plan's campaign, or a run folder whose settings are not the plan's, is refused. Ctrl-C
     stops resumably. The plan's format: docs/campaign.md (examples/campaign-small.toml).
+
+    Example: bstool campaign examples/paper.toml -o campaigns/paper --workers 2
     """
     from bstool.campaign import record as rec
     from bstool.campaign import runner
@@ -120,12 +122,21 @@ def command(
         runs = runner.check_runs(folder, plan, settings)
         record = rec.load(folder)
         runner.adopt(record, runs)
+        for old in record.sessions:  # the lock was free: a session still "running" was killed
+            if old.outcome == "running":
+                old.outcome = "killed"
         session = rec.Session(shlex.join(words), rec.now())
         record.sessions.append(session)
         rec.save(folder, record)
         start = time.monotonic()
         try:
-            _evolve(folder, runs, record, settings, workers, cluster, quiet, say)
+
+            def checkpoint() -> None:  # after each run: a killed session keeps its time
+                session.ended = rec.now()
+                session.wall_s = time.monotonic() - start
+                rec.save(folder, record)
+
+            _evolve(folder, runs, record, settings, workers, cluster, quiet, say, checkpoint)
             with progress.bar("analyses", None, quiet=quiet) as bar:
                 index = _report(folder, plan, settings, workers, quiet, bar, say)
             session.outcome = "finished"
@@ -161,6 +172,7 @@ def _evolve(
     cluster: str | None,
     quiet: bool,
     say: Callable[[str], None],
+    checkpoint: Callable[[], None],
 ) -> None:
     from tqdm import tqdm
 
@@ -205,6 +217,7 @@ def _evolve(
         bar.update(1)
 
     def ended(run: runner.Run, result: EvolveResult, seconds: float) -> None:
+        checkpoint()
         count["done"] += 1
         line = (
             f"campaign: {run.name} finished in {seconds / 60:.1f} min, best "
@@ -244,11 +257,16 @@ def _report(
     from bstool.campaign import report as creport
     from bstool.experiments import progress
 
+    last = {"run": ""}
+
     def describe(text: str) -> None:
         if progress.enabled(quiet):
             bar.describe(text)
-        else:
-            say(f"... {text}")
+            return
+        run = text.split(":")[0]
+        if run != last["run"]:  # a log gets one line per run
+            last["run"] = run
+            say(f"... analyses of {run}" if ":" in text else f"... {text}")
 
     return creport.build(
         folder,

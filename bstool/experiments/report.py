@@ -207,7 +207,7 @@ def batch_runner(
 
 
 MARKER = b'<meta name="generator" content="bstool report'
-_REPORT_FILE = re.compile(r"^(index\.html|report\.json|[\w.-]+\.png)$")
+_REPORT_FILE = re.compile(r"^(index\.html|report\.json|tables\.md|[\w.-]+\.png)$")
 
 
 def is_report(folder: Path) -> bool:
