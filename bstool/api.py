@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from bstool.compile import BuildResult
     from bstool.flash import ModuleReport, Progress, Timing
     from bstool.robot import RobotSpec
+    from bstool.robot.robotfile import Robot
     from bstool.sim import SimResult
     from bstool.tokenizer import Project
 
@@ -55,6 +56,7 @@ __all__ = [
     "fitness_text",
     "flash",
     "load_controller",
+    "load_robot",
     "load_states",
     "resume",
     "simulate",
@@ -116,10 +118,27 @@ def states(
     return ctrl.states(_transitions(ctrl, transitions), failed, failed_at=failed_at)
 
 
-def _spec(legs: int, modules: int, spec: RobotSpec | None) -> RobotSpec:
+def _spec(legs: int, modules: int, spec: RobotSpec | None, source: Any = None) -> RobotSpec:
+    """``spec`` if given, else the robot ``source`` (a controller) was evolved for, else the
+    default robot of legs × modules."""
     from bstool.robot import RobotSpec
+    from bstool.robot.robotfile import from_record
 
-    return spec if spec is not None else RobotSpec(legs=legs, modules=modules)
+    if spec is not None:
+        return spec
+    if not isinstance(source, np.ndarray) and source is not None:
+        recorded = load_controller(source).robot
+        if recorded is not None:
+            return from_record(recorded, "the controller").spec
+    return RobotSpec(legs=legs, modules=modules)
+
+
+def load_robot(path: PathLike) -> Robot:
+    """A robot file (``bstool.robot/1``): ``.spec`` is the RobotSpec to pass as ``spec=``,
+    ``.box`` its uncertain ranges (or the default box). Raises ``InputError`` naming the key."""
+    from bstool.robot import robotfile
+
+    return robotfile.load(path)
 
 
 def load_states(path: PathLike, *, spec: RobotSpec | None = None) -> np.ndarray:
@@ -156,7 +175,9 @@ def simulate(
     failed_at: Mapping[Any, int] | None = None,
     spec: RobotSpec | None = None,
 ) -> SimResult:
-    """Play a controller (or a (T+1, n, m) states array) on the MuJoCo robot.
+    """Play a controller (or a (T+1, n, m) states array) on the MuJoCo robot: ``spec`` (e.g.
+    ``load_robot(path).spec``), else the robot the controller was evolved for, else the
+    default one.
 
     Returns a ``SimResult``: ``path`` (T+1, 2) disc xy in metres, ``displacement``,
     ``distance`` (eq. 6, metres). Deterministic to the bit.
@@ -166,7 +187,7 @@ def simulate(
     seq = _sequence(source, transitions, failed, failed_at)
     shape = np.shape(seq)
     legs, modules = (shape[1], shape[2]) if len(shape) == 3 else (5, 6)
-    return Simulator(_spec(legs, modules, spec)).run(seq)
+    return Simulator(_spec(legs, modules, spec, source)).run(seq)
 
 
 def evaluate(
@@ -187,7 +208,7 @@ def evaluate(
         return []
     shape = np.shape(seqs[0])
     legs, modules = (shape[1], shape[2]) if len(shape) == 3 else (5, 6)
-    return evaluate_batch(_spec(legs, modules, spec), seqs, workers=workers)
+    return evaluate_batch(_spec(legs, modules, spec, batch[0]), seqs, workers=workers)
 
 
 def compile(  # the stage's name: bstool.api is used as a namespace
@@ -199,8 +220,10 @@ def compile(  # the stage's name: bstool.api is used as a namespace
     modules: Sequence[str] = (),
     tokenize: bool = True,
     progress: bool = False,
+    robot: PathLike | Robot | None = None,
 ) -> BuildResult:
-    """Compile into the build folder ``out`` (replaced as a whole), as ``bstool compile``.
+    """Compile into the build folder ``out`` (replaced as a whole), as ``bstool compile``;
+    ``robot``: a robot file or ``load_robot``'s result (default: the controller's robot).
 
     Returns a ``BuildResult`` (``out_dir``, ``controller_hash``, ``modules``, ``manifest``).
     Raises ``BuildError`` when the controller does not fit, ``InputError`` for bad paths.
@@ -214,6 +237,7 @@ def compile(  # the stage's name: bstool.api is used as a namespace
         "modules": modules,
         "tokenize": tokenize,
         "progress": progress,
+        "robot": robot,
     }
     if isinstance(controller, str | os.PathLike):
         return compile_controller(controller, out, **options)

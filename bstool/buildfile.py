@@ -222,6 +222,9 @@ class Manifest:
     links: list[Wire]
     flash_order: list[FlashStep]
     format: str = FORMAT
+    # the robot it was compiled for (bstool.robot.robotfile.Robot.to_json: every value and the
+    # uncertain ranges), when it is not the default one; written only then, as "robot_values"
+    robot_values: dict[str, Any] | None = None
 
     def module(self, mid: ModuleId) -> Module | None:
         return next((m for m in self.modules if m.module == mid), None)
@@ -282,10 +285,14 @@ def _module_json(m: Module) -> dict[str, Any]:
 
 def to_json(man: Manifest) -> dict[str, Any]:
     """The manifest as the JSON object on disk (field order as written)."""
-    return {
+    out: dict[str, Any] = {
         "format": man.format,
         "controller": dict(man.controller.__dict__),
         "robot": dict(man.robot.__dict__),
+    }
+    if man.robot_values is not None:
+        out["robot_values"] = man.robot_values
+    return out | {
         "period_s": man.period_s,
         "tokenized": man.tokenized,
         "link": dict(man.link.__dict__),
@@ -521,6 +528,9 @@ def from_json(obj: Any, file: str | os.PathLike[str] = MANIFEST_FILE) -> Manifes
     period = top.number("period_s")
     if not period > 0:
         raise _Fields._error(path, "period_s", "a period > 0 seconds", period)
+    values = obj.get("robot_values")
+    if values is not None and not isinstance(values, dict):
+        raise _Fields._error(path, "robot_values", "an object (the robot's values)", values)
     return Manifest(
         controller=controller,
         robot=robot,
@@ -531,6 +541,7 @@ def from_json(obj: Any, file: str | os.PathLike[str] = MANIFEST_FILE) -> Manifes
         modules=modules,
         links=wires,
         flash_order=order,
+        robot_values=values,
     )
 
 

@@ -27,6 +27,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Run a controller (or a states file) on the MuJoCo robot.",
     ),
     "model": ("bstool.commands.model", "Write the generated MJCF robot model."),
+    "robot": ("bstool.commands.robot", "Print the default robot file to edit, or check one."),
     "states": ("bstool.commands.states", "Print the reference state sequence of a controller."),
     "evolve": (
         "bstool.commands.evolve",
@@ -60,6 +61,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "Disc paths of several controllers on one figure (Fig. 18).",
     ),
     "rotate": ("bstool.commands.rotate", "Shift a controller's legs to turn its heading."),
+    "sensitivity": (
+        "bstool.commands.sensitivity",
+        "How far gaits transfer to robots with other physics (the uncertain ranges).",
+    ),
     "report": ("bstool.commands.report", "HTML report comparing evolve runs and controllers."),
     "campaign": (
         "bstool.commands.campaign",

@@ -19,15 +19,29 @@ from hil_mock.twin_result import NS
 
 
 def robot_spec(build: Build) -> RobotSpec:
-    """The robot a build was compiled for (the manifest's size, the default geometry)."""
+    """The robot a build was compiled for: the robot file's values it recorded
+    (``robot_values``), else the manifest's size with the default physics."""
     from bstool.robot import RobotSpec
+    from bstool.robot.robotfile import from_record
 
+    if build.manifest.robot_values is not None:
+        return from_record(build.manifest.robot_values, str(build.root)).spec
     robot = build.manifest.robot
     return RobotSpec(legs=robot.legs, modules=robot.modules, states=robot.states)
 
 
+def with_robot(build: Build, robot: Robot) -> Build:
+    """``build`` run on another robot (``bstool twin --robot``): its programs, that robot's
+    physics (and timestep) for the twin and the reference simulators."""
+    import dataclasses
+
+    manifest = dataclasses.replace(build.manifest, robot_values=robot.to_json())
+    return dataclasses.replace(build, manifest=manifest)
+
+
 if TYPE_CHECKING:
     from bstool.robot import RobotSpec
+    from bstool.robot.robotfile import Robot
     from bstool.sim.simulator import Simulator
 
 LIMP_AFTER_S = 0.06
@@ -67,8 +81,8 @@ class Body:
 
     def _init_physics(self, physics: bool) -> None:
         self.sim = None
-        if not physics:
-            self.dt_ns = 2_000_000
+        if not physics:  # the robot's step still sets the chunk the stamps run in
+            self.dt_ns = round(robot_spec(self.build).timestep * NS)
             return
         from bstool.sim.simulator import Simulator
 

@@ -32,7 +32,8 @@ from bstool.compile.build import compile_loaded
 from bstool.controllers import Controller
 from bstool.errors import BuildError, InputError
 from bstool.evolve.problem import Problem
-from bstool.robot import state_to_angle
+from bstool.robot import RobotSpec, state_to_angle
+from bstool.robot.robotfile import Robot
 from bstool.sim.timed import ScheduleEnsemble, ScheduleModel
 from bstool.timingfile import DEFAULT as DEFAULT_TIMING
 from bstool.timingfile import TimingModel
@@ -99,8 +100,11 @@ def transition_instants(
     return np.stack(rows), ref.leg * build.modules + ref.module
 
 
-def fit(instants: list[np.ndarray], reference: int, states: int) -> ScheduleModel:
-    """Average the instants of several builds (same model, period and robot)."""
+def fit(
+    instants: list[np.ndarray], reference: int, states: int, timestep: float = 0.002
+) -> ScheduleModel:
+    """Average the instants of several builds (same model, period and robot); ``timestep``:
+    the robot's physics step (the twin's chunk is CHUNK_STEPS of them)."""
     c = np.mean(np.stack(instants), axis=0)  # (A, T + 2)
     base = np.zeros(c.shape[1] - 1)
     base[1:] = c[:, 1:-1].mean(axis=0)
@@ -108,7 +112,7 @@ def fit(instants: list[np.ndarray], reference: int, states: int) -> ScheduleMode
     offset[1:] = np.mean([(x[:, 1:-1] - x[:, 1:-1].mean(axis=0)).T for x in instants], 0)
     diffs = np.diff(base[1:])
     period = float(diffs[1:].mean() if len(diffs) > 1 else diffs.mean() if len(diffs) else 0)
-    grid = CHUNK_STEPS * 0.002  # the twin's chunk at MuJoCo's 2 ms step
+    grid = CHUNK_STEPS * timestep  # the twin's chunk at the robot's physics step
     angles = state_to_angle(np.arange(states), states)
     return ScheduleModel(grid, c[:, 0], base, offset, period, reference, np.asarray(angles))
 
@@ -123,13 +127,15 @@ def _instants(
     seed: int,
     key: str,
     timing: TimingModel | None,
+    spec: RobotSpec | None = None,
 ) -> tuple[np.ndarray, int, int]:
     """One representative build's instants (random controller ``seed``), its reference
-    actuator and the model's state count."""
+    actuator and the model's state count; ``spec``: the robot (None: the default)."""
     ctrl = random_controller(model, seed, legs=legs, modules=modules)
+    robot = None if spec is None else Robot(spec)
     with tempfile.TemporaryDirectory(prefix="bstool-schedule-") as tmp:
         out = Path(tmp) / f"b{seed}"
-        res = compile_loaded(ctrl, out, period=period, timing=timing)  # in memory: no file
+        res = compile_loaded(ctrl, out, period=period, timing=timing, robot=robot)
         c, reference = transition_instants(buildfile.Build(out, res.manifest), transitions, timing)
     return c, reference, ctrl.k
 
@@ -144,6 +150,7 @@ def schedule_model(
     representatives: int = REPRESENTATIVES,
     timing: TimingModel | None = None,
     builds: int = 0,
+    spec: RobotSpec | None = None,
 ) -> ScheduleModel | ScheduleEnsemble:
     """The fitted schedule model of ``model`` at ``period`` (None: compile's default) for
     stamps with ``timing`` (a measured ``bstool.timing/1`` model: the representatives are
@@ -153,17 +160,23 @@ def schedule_model(
     ``builds`` = 0: one model, the mean of ``representatives`` builds (how runs before the
     ensemble were evolved: their fitness replays with it); ``builds`` = K >= 1: a
     :class:`ScheduleEnsemble` of K builds each fitted alone (``bstool evolve --stamp-timed``
-    since 2026-12-03, ``--schedule-builds``)."""
+    since 2026-12-03, ``--schedule-builds``). ``spec``: a robot file's robot (its servo speed
+    sets the default period, its timestep the twin's chunk); None or the default robot: the
+    default one."""
     if isinstance(builds, bool) or not isinstance(builds, int) or builds < 0:
         raise InputError(f"builds must be a whole number >= 0, got {builds!r}")
-    key = f"{__version__}:{templates_hash()}:{timing_digest(timing)}"
+    if spec is not None and spec == RobotSpec(legs=legs, modules=modules):
+        spec = None
+    robot_digest = "" if spec is None else Robot(spec).digest()[:16]
+    key = f"{__version__}:{templates_hash()}:{timing_digest(timing)}:{robot_digest}"
     if timing is not None and timing == DEFAULT_TIMING:
         timing = None
     count = builds or representatives
     runs = [
-        _instants(model, period, legs, modules, transitions, seed, key, timing)
+        _instants(model, period, legs, modules, transitions, seed, key, timing, spec)
         for seed in range(count)
     ]
+    step = 0.002 if spec is None else spec.timestep
     if not builds:
-        return fit([c for c, _, _ in runs], runs[0][1], runs[0][2])
-    return ScheduleEnsemble(tuple(fit([c], ref, k) for c, ref, k in runs))
+        return fit([c for c, _, _ in runs], runs[0][1], runs[0][2], step)
+    return ScheduleEnsemble(tuple(fit([c], ref, k, step) for c, ref, k in runs))

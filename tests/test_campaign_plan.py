@@ -26,9 +26,26 @@ def parse(text: str) -> cp.CampaignPlan:
 
 
 def test_the_settings_are_evolves_options_less_the_run_options() -> None:
-    assert {"pop", "gens", "pc", "pm", "transitions", "coevol-gens", "fitness", "stamp-timed",
-            "period", "schedule-builds", "robust", "coevolve-faults", "parasites",
-            "parasite-k", "timing"} <= set(SETTINGS)  # fmt: skip
+    assert {
+        "pop",
+        "gens",
+        "pc",
+        "pm",
+        "transitions",
+        "coevol-gens",
+        "fitness",
+        "stamp-timed",
+        "period",
+        "schedule-builds",
+        "robust",
+        "coevolve-faults",
+        "parasites",
+        "parasite-k",
+        "timing",
+        "robot",
+        "randomize",
+        "randomize-samples",
+    } <= set(SETTINGS)
     assert not {"out", "resume", "force", "workers", "cluster", "quiet", "seed"} & set(SETTINGS)
 
 

@@ -97,9 +97,9 @@ def test_one_cpu_count_helper(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -
     seen: list[int] = []
     real = driver.factory_for
 
-    def spy(kind: str, problem: Any, workers: int) -> Any:
+    def spy(kind: str, problem: Any, workers: int, *more: Any) -> Any:
         seen.append(workers)
-        return real(kind, problem, workers)
+        return real(kind, problem, workers, *more)
 
     monkeypatch.setattr(driver, "factory_for", spy)
     plan = driver.plan_new("ca1d", opt.ga_params("ca1d", pop=4, gens=1, transitions=4),

@@ -74,6 +74,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     source.write_text("' {$STAMP BS2sx}\n' {$PBASIC 2.5}\nGOTO nowhere\n")
     good_source = d / "good.bsx"
     good_source.write_text("' {$STAMP BS2sx}\n' {$PBASIC 2.5}\nHIGH 0\nEND\n")
+    badrobot = d / "robot.toml"
+    badrobot.write_text("frction = 0.5\n")
     calibration = d / "servos.json"
     calibration.write_text(json.dumps({"format": "bstool.servos/1", "legs": 4}))
     build = d / "build"
@@ -119,6 +121,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "source": source,
         "good_source": good_source,
         "calibration": calibration,
+        "badrobot": badrobot,
         "build": build,
         "damaged": damaged,
         "run": run_dir,
@@ -167,6 +170,10 @@ CASES: dict[tuple[str, int], str] = {
     ("paths", 2): "paths {bad}",
     ("rotate", 0): "rotate {ctrl} --legs 1 -T 1 -o {dir}/rotated.json",
     ("rotate", 2): "rotate {bad} --legs 1 -o {dir}/r2.json",
+    ("robot", 0): "robot",
+    ("robot", 2): "robot {badrobot}",
+    ("sensitivity", 0): "sensitivity {ctrl} -T 1 --points 2 --samples 1 -q",
+    ("sensitivity", 2): "sensitivity {ctrl} --robot {badrobot}",
     ("report", 0): "report {run} -T 2 --extrapolate 3 -o {dir}/report -q",
     ("report", 2): "report {dir} -o {dir}/r2",
     ("campaign", 0): "campaign {plan} -o {dir}/campaign -q",

@@ -28,6 +28,7 @@ from bstool.experiments.extrapolate import reinit_states
 from bstool.experiments.paths import distance_curve, path_shape
 from bstool.experiments.report import batch_runner
 from bstool.robot import RobotSpec
+from bstool.robot.robotfile import Robot, resolve
 
 FOLDER = "analyses"
 FORMAT = "bstool.campaign-analysis/1"
@@ -75,9 +76,15 @@ def jobs(plan: cp.CampaignPlan, transitions: int) -> list[Job]:
     return out
 
 
+def robot_of(controller: Controller) -> Robot:
+    """The robot a run was evolved for (recorded in its best.json; else the default): its
+    analyses run on its nominal values, randomized runs included."""
+    return resolve(None, controller.robot, what="best.json")[0]
+
+
 def evaluation(controller: Controller) -> dict[str, Any]:
     """How a run's controller is played: as it was evolved (its ``ga`` says stamp-timed and
-    the period), on the nominal robot."""
+    the period), on the nominal robot it was evolved for (part of best.json)."""
     ga = controller.ga or {}
     if ga.get("stamp_timed"):
         return {"kind": "stamp-timed", "period": ga.get("period")}
@@ -243,7 +250,7 @@ def analyse(
             else:
                 todo.append((name, c, job, key, path))
     say.total(sum(simulations(job, c) for _, c, job, _, _ in todo))
-    evaluators: dict[tuple[int, int, int], Any] = {}
+    evaluators: dict[RobotSpec, Any] = {}
     schedules: dict[str, Any] = {}
     try:
         for name, c, job, key, path in todo:
@@ -255,11 +262,10 @@ def analyse(
                         f"{name} was evolved stamp-timed: its analyses need the schedule model"
                     )
                 schedules[name] = schedule_for(c, how.get("period"))
-            size = (c.legs, c.modules, c.k)
-            if size not in evaluators:  # one MuJoCo model per robot size, not per analysis
-                spec = RobotSpec(legs=c.legs, modules=c.modules, states=c.k)
-                evaluators[size] = BatchEvaluator(spec, workers=workers)
-            run = batch_runner(evaluators[size], schedules.get(name), say.advance)
+            spec = robot_of(c).spec
+            if spec not in evaluators:  # one MuJoCo model per robot, not per analysis
+                evaluators[spec] = BatchEvaluator(spec, workers=workers)
+            run = batch_runner(evaluators[spec], schedules.get(name), say.advance)
             result = compute(job, c, run)
             record = {
                 "format": FORMAT,

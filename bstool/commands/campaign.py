@@ -59,10 +59,12 @@ def evolve_settings() -> dict[str, cp.Setting]:
 
 def analysis_schedule(controller: Any, period: float | None) -> Any:
     """The schedule model a stamp-timed run's analyses play it on (as ``report --stamp-timed``)."""
+    from bstool.campaign.analyses import robot_of
     from hil_mock.schedule_model import schedule_model
 
     c = controller
-    return schedule_model(c.model, period=period, legs=c.legs, modules=c.modules)
+    spec = robot_of(c).spec
+    return schedule_model(c.model, period=period, legs=c.legs, modules=c.modules, spec=spec)
 
 
 @click.command("campaign")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+from bstool.commands.robot_option import resolve_robot, robot_option
+
 
 @click.command("compile")
 @click.argument("controller", type=click.Path(dir_okay=False))
@@ -47,6 +49,7 @@ import click
     help="A bstool.timing/1 file (bstool probe): estimate with the stamps' measured timing.",
 )
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
+@robot_option
 def command(
     controller: str,
     out_dir: str,
@@ -56,13 +59,17 @@ def command(
     force: bool,
     timing_file: str | None,  # issue 13 §2
     quiet: bool,
+    robot: str | None,
 ) -> None:
     """Compile CONTROLLER (best.json) into one PBASIC program per module (docs/compile.md):
     sources, tokenized slot images, manifest.json and WIRING.md in the output folder."""
     import sys
 
     from bstool.compile import compile_controller
+    from bstool.controllers import load_controller
 
+    if robot is not None:
+        resolve_robot(robot, load_controller(controller).robot, controller, quiet=quiet)
     result = compile_controller(
         controller,
         out_dir,
@@ -72,6 +79,7 @@ def command(
         progress=not quiet and sys.stderr.isatty(),
         force=force,
         timing=timing_file,  # issue 13 §2
+        robot=robot,
     )
     if quiet:
         return

@@ -15,6 +15,7 @@ import click
 
 import hil_mock  # noqa: F401  (registers the twin's bstwin:// serial URL handler)
 from bstool.builtin import DEFAULT_MODEL, MODELS, builtin_controller
+from bstool.commands.robot_option import resolve_robot, robot_option
 
 
 @click.command("demo")
@@ -48,6 +49,7 @@ from bstool.builtin import DEFAULT_MODEL, MODELS, builtin_controller
     "--force", is_flag=True, help="With --out: replace a non-empty folder that is not a build."
 )
 @click.option("-q", "--quiet", is_flag=True, help="No progress bars.")
+@robot_option
 def command(
     model: str,
     controller: str | None,
@@ -56,6 +58,7 @@ def command(
     out: str | None,
     force: bool,
     quiet: bool,
+    robot: str | None,
 ) -> None:
     """Show that what runs on the stamps is what evolved: compile a controller, flash it into
     30 virtual BS2sx modules over the serial programming protocol, run them on the simulated
@@ -67,7 +70,7 @@ def command(
         check_output(Path(out), force=force, protect=(source,))
     with tempfile.TemporaryDirectory(prefix="bstool-demo-") as tmp:
         build_dir = Path(out) if out else Path(tmp) / "build"
-        ok = _demo(source, build_dir, transitions, failed, quiet, force=force)
+        ok = _demo(source, build_dir, transitions, failed, quiet, force=force, robot=robot)
     if not ok:
         click.get_current_context().exit(1)
 
@@ -80,6 +83,7 @@ def _demo(
     quiet: bool,
     *,
     force: bool = False,
+    robot: str | None = None,
 ) -> bool:
     from tqdm import tqdm
 
@@ -97,7 +101,9 @@ def _demo(
         f"hash {ctrl.hash()[:8]}")  # fmt: skip
 
     t0 = time.perf_counter()
-    result = compile_controller(source, build_dir, force=force)
+    if robot is not None:
+        resolve_robot(robot, ctrl.robot, str(source))  # says so when it differs
+    result = compile_controller(source, build_dir, force=force, robot=robot)
     slots = sum(len(m.slots) for m in result.manifest.modules)
     say(f"compile      {len(result.manifest.modules)} PBASIC programs, {slots} slots "
         f"tokenized ({time.perf_counter() - t0:.1f} s) -> {build_dir}")  # fmt: skip

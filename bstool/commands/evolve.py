@@ -27,6 +27,7 @@ from bstool.evolve.driver import (
     plan_new,
     plan_resume,
 )
+from bstool.evolve.randomize import SCORES
 from bstool.evolve.scoring import ROBUST_MODES
 
 _D = opt.default
@@ -125,6 +126,30 @@ _D = opt.default
               show_default=True, help="--coevolve-faults: parasite population size.")  # fmt: skip
 @click.option("--parasite-k", metavar="K|A..B", default=_D("parasite_k"), show_default=True,
               help="--coevolve-faults: failed modules per parasite.")  # fmt: skip
+@click.option(
+    "--robot",
+    type=click.Path(dir_okay=False),
+    help="A robot file (bstool.robot/1, `bstool robot` writes the default): the robot to "
+    "evolve for; its values are recorded in best.json and the checkpoint.",
+)
+@click.option(
+    "--randomize",
+    is_flag=True,
+    help="Score each candidate on K robots drawn from the robot file's [uncertain] ranges "
+    "(the default box without one), the same K for every candidate of a generation, new ones "
+    "each generation; best.json is the best on a fixed validation set (docs/evolution.md).",
+)
+@click.option("--randomize-samples", type=click.IntRange(min=1),
+              help="--randomize: robots per generation, K  [default: 4]")  # fmt: skip
+@click.option("--randomize-score", type=click.Choice(SCORES),
+              help="--randomize: a candidate's score over its K robots (worst-quarter: the mean "
+              "of the lowest quarter)  [default: mean]")  # fmt: skip
+@click.option("--validate-every", type=click.IntRange(min=1),
+              help="--randomize: measure the generation's best on the validation robots every N "
+              "generations (and at the last)  [default: 5]")  # fmt: skip
+@click.option("--validation-samples", type=click.IntRange(min=1),
+              help="--randomize: validation robots, seeded apart from the training draws "
+              "[default: 64]")  # fmt: skip
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @click.pass_context
 def command(
@@ -161,7 +186,8 @@ def command(
         if force:
             raise InputError("--force only applies to a new run (--out DIR)")
         given.pop("period", None)
-        plan = plan_resume(resume, {**given, "model": model})  # --timing: checked by sha256
+        extra = _randomize_given(given)
+        plan = plan_resume(resume, {**given, **extra, "model": model})  # --timing: by sha256
     else:
         model = opt.check_model(model)
         if out is None:
@@ -171,10 +197,33 @@ def command(
         period = given.pop("period", None)
         timing = given.pop("timing", None)
         builds = given.pop("schedule_builds", None)
+        robot = given.pop("robot", None)
+        randomize = {k: given.pop(k, None) for k in _RANDOMIZE_OPTIONS}
         plan = plan_new(model, opt.ga_params(model, **given), fitness=fitness, out=out,
                         force=force, stamp_timed=stamp_timed, period=period,
-                        timing=timing, schedule_builds=builds)  # fmt: skip
+                        timing=timing, schedule_builds=builds, robot=robot,
+                        randomize=bool(randomize.pop("randomize")), **randomize)  # fmt: skip
     _run(plan, workers, cluster, quiet)
+
+
+_RANDOMIZE_OPTIONS = (
+    "randomize",
+    "randomize_samples",
+    "randomize_score",
+    "validate_every",
+    "validation_samples",
+)
+
+
+def _randomize_given(given: dict[str, Any]) -> dict[str, Any]:
+    """On --resume: the randomize options typed, as the settings to check against the run's."""
+    typed = {k: given.pop(k, None) for k in _RANDOMIZE_OPTIONS}
+    flag = bool(typed.pop("randomize"))
+    if not flag and all(v is None for v in typed.values()):
+        return {}
+    if all(v is None for v in typed.values()):
+        return {"randomize": True}
+    return {"randomize": opt.randomize_settings(True, *typed.values())["randomize"]}
 
 
 def _mode(plan: Plan) -> str:
@@ -201,15 +250,15 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
 
     def show(g: Generation) -> None:
         rate = (g.evaluations - paid0) / max(time.perf_counter() - start, 1e-9)
-        bar.set_postfix(
-            {
-                "gen": f"{g.population}:{g.generation}",
-                "best": fitness_text(g.best, g.fitness),
-                "mean": fitness_text(g.mean, g.fitness),
-                "eval/s": f"{rate:.1f}",
-            },
-            refresh=False,
-        )
+        shown = {
+            "gen": f"{g.population}:{g.generation}",
+            "best": fitness_text(g.best, g.fitness),
+            "mean": fitness_text(g.mean, g.fitness),
+            "eval/s": f"{rate:.1f}",
+        }
+        if g.validation is not None:
+            shown["validation"] = fitness_text(g.validation, g.fitness)
+        bar.set_postfix(shown, refresh=False)
         bar.update(1)
 
     schedule = fit_schedule(plan, quiet) if plan.stamp_timed else None
@@ -252,6 +301,7 @@ def fit_schedule(plan: Plan, quiet: bool) -> Any:
         modules=state.problem.modules,
         timing=None if plan.timing_file is None else timingfile.load(plan.timing_file),
         builds=plan.schedule_builds,
+        spec=None if state.robot is None else state.robot.spec,
     )
 
 
@@ -264,6 +314,8 @@ def summary(result: EvolveResult) -> str:
         if result.fitness_kind == "physics"
         else "not a distance"
     )
+    if result.randomize is not None:
+        what = f"{what}, the mean over {result.randomize['validation_samples']} validation robots"
     lines = [
         f"best fitness {result.fitness_text} ({what}) -> {result.best_json}",
         f"evaluations {s['evaluations']}, cache hits {s['cache_hits']}, "

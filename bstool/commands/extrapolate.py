@@ -9,6 +9,8 @@ import click
 import numpy as np
 
 from bstool import outputs
+from bstool.commands.robot_option import robot_option
+from bstool.commands.robot_option import say_note as _say_note
 from bstool.experiments import common, progress
 from bstool.experiments.extrapolate import reinit_states, run_with_progress
 from bstool.experiments.paths import distance_curve
@@ -28,6 +30,7 @@ from bstool.experiments.paths import distance_curve
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("--plot", type=click.Path(dir_okay=False), help="PNG of distance against transition.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@robot_option
 def command(
     controller: str,
     transitions: int,
@@ -36,12 +39,14 @@ def command(
     as_json: bool,
     plot: str | None,
     quiet: bool,
+    robot: str | None,
 ) -> None:
     """Run CONTROLLER for -T transitions and report the distance from the start after each
     one: does it keep going after the MAX_TRANS it was evolved for?"""
     if plot:
         outputs.check_file(plot, "plot")
-    loaded = common.load(controller)
+    loaded = common.load(controller, robot)
+    _say_note(loaded.note, as_json)
     max_trans = loaded.controller.max_trans or 30
     every = max_trans if reinit_every is None else reinit_every
     sequences = {"plain": loaded.controller.states(transitions)}

@@ -9,6 +9,8 @@ import math
 import click
 
 from bstool import outputs
+from bstool.commands.robot_option import robot_option
+from bstool.commands.robot_option import say_note as _say_note
 from bstool.experiments import common, progress
 from bstool.experiments.mobility import (
     FaultRun,
@@ -58,6 +60,7 @@ from bstool.experiments.mobility import (
     help="PNG: bars per failed module (Fig. 17), or the M_D curve against K.",
 )
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@robot_option
 def command(
     controller: str,
     transitions: int | None,
@@ -68,6 +71,7 @@ def command(
     as_json: bool,
     plot: str | None,
     quiet: bool,
+    robot: str | None,
 ) -> None:
     """Fail each module of CONTROLLER alone (n·m runs) and report the degree of mobility
     M_D = distance with the failure / distance without × 100 % (eq. 15), with the paper's
@@ -78,7 +82,8 @@ def command(
         outputs.check_file(plot, "plot")  # before minutes of simulation, not after
     from bstool.sim.batch import BatchEvaluator
 
-    loaded = common.load(controller)
+    loaded = common.load(controller, robot)
+    _say_note(loaded.note, as_json)
     T = common.default_transitions(loaded.controller, transitions)
     cells = loaded.controller.legs * loaded.controller.modules
     runs = 1 + (sum(min(samples, math.comb(cells, k)) for k in set(ks)) if ks else cells)

@@ -5,7 +5,9 @@ from __future__ import annotations
 import click
 
 from bstool import fileio, outputs
-from bstool.robot import RobotSpec, to_mjcf
+from bstool.commands.robot_option import robot_option
+from bstool.errors import InputError
+from bstool.robot import RobotSpec, robotfile, to_mjcf
 
 
 @click.command("model")
@@ -27,12 +29,33 @@ from bstool.robot import RobotSpec, to_mjcf
     show_default=True,
     help="Hinge axis of the lead module; the others alternate.",
 )
-def command(xml_out: str | None, legs: int, modules: int, lead_axis: str) -> None:
-    """Generate the robot's MuJoCo model (MJCF) from the robot description. Without --xml,
-    print a summary of the model."""
+@robot_option
+@click.pass_context
+def command(
+    ctx: click.Context,
+    xml_out: str | None,
+    legs: int,
+    modules: int,
+    lead_axis: str,
+    robot: str | None,
+) -> None:
+    """Generate the robot's MuJoCo model (MJCF) from the robot description (--robot FILE, or
+    the default robot). Without --xml, print a summary of the model."""
     if xml_out and xml_out != "-":
         outputs.check_file(xml_out, "model file")
-    spec = RobotSpec(legs=legs, modules=modules, lead_axis=lead_axis)  # type: ignore[arg-type]
+    if robot is not None:
+        from click.core import ParameterSource
+
+        typed = [name for name in ("legs", "modules", "lead_axis")
+                 if ctx.get_parameter_source(name) is not ParameterSource.DEFAULT]  # fmt: skip
+        if typed:
+            raise InputError(
+                f"--{typed[0].replace('_', '-')} does not combine with --robot",
+                hint="set it in the robot file",
+            )
+        spec = robotfile.load(robot).spec
+    else:
+        spec = RobotSpec(legs=legs, modules=modules, lead_axis=lead_axis)  # type: ignore[arg-type]
     xml = to_mjcf(spec)
     if xml_out == "-":
         click.echo(xml, nl=False)

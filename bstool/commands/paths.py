@@ -8,6 +8,8 @@ import json
 import click
 
 from bstool import outputs
+from bstool.commands.robot_option import robot_option
+from bstool.commands.robot_option import say_note as _say_note
 from bstool.experiments import common, progress
 from bstool.experiments.paths import path_shape
 
@@ -24,18 +26,22 @@ from bstool.experiments.paths import path_shape
 @click.option("--plot", type=click.Path(dir_okay=False), help="PNG with every path.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@robot_option
 def command(
     controllers: tuple[str, ...],
     transitions: int | None,
     plot: str | None,
     as_json: bool,
     quiet: bool,
+    robot: str | None,
 ) -> None:
     """Simulate each CONTROLLER and compare the paths of the disc. Controllers with the same
     name are told apart by their folders, e.g. ``nnsin (runs)`` and ``nnsin (other)``."""
     if plot:
         outputs.check_file(plot, "plot")
-    loaded = [common.load(path) for path in controllers]
+    loaded = [common.load(path, robot) for path in controllers]
+    for item in loaded:
+        _say_note(item.note, as_json)
     labels = common.unique_labels(controllers)
     from bstool.sim.simulator import SimResult, Simulator
 

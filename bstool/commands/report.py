@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+from bstool.commands.robot_option import robot_option
+
 
 @click.command("report")
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=False))
@@ -41,6 +43,7 @@ import click
               help="--stamp-timed: the period the controllers will be compiled with "
               "(default: compile's).")  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace OUT even if it is not an earlier report.")
+@robot_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar or messages.")
 @click.pass_context
 def command(
@@ -55,6 +58,7 @@ def command(
     period: float | None,
     force: bool,
     quiet: bool,
+    robot: str | None,
 ) -> None:
     """Compare INPUTS (evolve run directories or controller files): fitness curves, disc paths,
     mobility under single failures, distance beyond MAX_TRANS, spread over leg rotations, and
@@ -73,7 +77,14 @@ def command(
 
         given = [
             f"--{name.replace('_', '-')}"
-            for name in ("transitions", "extrapolate", "multi_samples", "stamp_timed", "period")
+            for name in (
+                "transitions",
+                "extrapolate",
+                "multi_samples",
+                "stamp_timed",
+                "period",
+                "robot",
+            )
             if ctx.get_parameter_source(name) is not ParameterSource.DEFAULT
         ]
         if given:
@@ -91,15 +102,19 @@ def command(
     evaluation = "plain (every servo moves at each transition boundary)"
     if stamp_timed:
         from bstool.controllers import Controller
+        from bstool.robot.robotfile import resolve
         from hil_mock.schedule_model import schedule_model
 
         def schedule_for(c: Controller) -> object:
-            return schedule_model(c.model, period=period, legs=c.legs, modules=c.modules)
+            spec = resolve(robot, c.robot, what=c.model)[0].spec
+            return schedule_model(c.model, period=period, legs=c.legs, modules=c.modules, spec=spec)
 
         evaluation = "stamp-timed (each servo moved when its stamp would, schedule model" + (
             ")" if period is None else f", period {period:g} s)"
         )
 
+    if robot is not None and not quiet:
+        _robot_notes(inputs, robot)
     with progress.bar("report", None, quiet=quiet) as bar:
 
         def say(msg: str) -> None:
@@ -121,6 +136,7 @@ def command(
             runs_total=bar.total,
             schedule_for=schedule_for,
             evaluation=evaluation,
+            robot=robot,
         )
     click.echo(f"report: {index}")
 
@@ -151,3 +167,16 @@ def _campaign(folder: str, out: str | None, workers: int | None, force: bool, qu
             progress=analyses.Progress(bar.total, bar, say),
         )
     click.echo(f"report: {index}")
+
+
+def _robot_notes(inputs: tuple[str, ...], robot: str) -> None:
+    """One line per input whose recorded robot --robot differs from."""
+    from pathlib import Path
+
+    from bstool.commands.robot_option import resolve_robot
+    from bstool.controllers import load_controller
+
+    for item in inputs:
+        path = Path(item) / "best.json" if Path(item).is_dir() else Path(item)
+        if path.is_file():
+            resolve_robot(robot, load_controller(path).robot, str(path))

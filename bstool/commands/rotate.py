@@ -7,6 +7,8 @@ import json
 import click
 
 from bstool import outputs
+from bstool.commands.robot_option import robot_option
+from bstool.commands.robot_option import say_note as _say_note
 from bstool.controllers import save_controller
 from bstool.experiments import common
 from bstool.experiments.paths import heading_deg, wrap_deg
@@ -44,6 +46,7 @@ from bstool.experiments.rotation import choose_rotation, rotate_controller
     help="Transitions for measuring headings (default: max_trans, else 30).",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@robot_option
 def command(
     controller: str,
     legs: int | None,
@@ -51,6 +54,7 @@ def command(
     out: str,
     transitions: int | None,
     as_json: bool,
+    robot: str | None,
 ) -> None:
     """Write a copy of CONTROLLER whose legs' parameters are shifted, so the robot walks the
     same gait in another direction. Both headings are measured in simulation."""
@@ -59,7 +63,8 @@ def command(
     outputs.check_file(out, "rotated controller")
     from bstool.sim.simulator import Simulator
 
-    loaded = common.load(controller)
+    loaded = common.load(controller, robot)
+    _say_note(loaded.note, as_json)
     n = loaded.controller.legs
     T = common.default_transitions(loaded.controller, transitions)
     sim = Simulator(loaded.spec)

@@ -17,6 +17,7 @@ import numpy as np
 
 from bstool import fileio, outputs
 from bstool.builtin import DEFAULT_MODEL, MODELS
+from bstool.commands.robot_option import resolve_robot, robot_option
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_module
 from bstool.robot import RobotSpec
@@ -126,6 +127,7 @@ class Source:
 @click.option(
     "--example", is_flag=True, help="Without CONTROLLER: run the hand-made travelling wave."
 )
+@robot_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(
     controller: str | None,
@@ -146,6 +148,7 @@ def command(
     stamp_timed: bool,
     period: float | None,
     other_builds: int,
+    robot: str | None,
 ) -> None:
     """Run CONTROLLER (a bstool.controller/1 file) or --states FILE on the simulated robot and
     print the disc's displacement and distance (paper eq. 6). Without either, run a shipped
@@ -187,7 +190,15 @@ def command(
 
         build, ctrl_path = load_matching(build_dir, controller)
         controller = ctrl_path
-    source = _load_source(controller, states_file, transitions, failed, model, example)
+        if robot is not None:  # the build's programs on another robot
+            from hil_mock.body import with_robot
+
+            chosen = resolve_robot(
+                robot, build.manifest.robot_values, str(build.root), quiet=as_json
+            )
+            build = with_robot(build, chosen)
+    source = _load_source(controller, states_file, transitions, failed, model, example, robot,
+                          quiet=as_json or build_dir is not None)  # fmt: skip
     stamp: dict[str, Any] = {}
     if build_dir is not None:
         from bstool.commands.simulate_build import run_build
@@ -211,6 +222,7 @@ def command(
             period=period,
             timing_file=timing_file,
             other_builds=other_builds,
+            spec=source.spec,
         )
         timing = stamp["timing"]
     else:
@@ -283,6 +295,9 @@ def _load_source(
     failed: tuple[str, ...],
     model: str = "nnsin",
     example: bool = False,
+    robot: str | None = None,
+    *,
+    quiet: bool = False,
 ) -> Source:
     if controller and states_file:
         raise InputError(
@@ -292,8 +307,8 @@ def _load_source(
     if controller:
         data = fileio.read_json(controller, "controller file")
         if isinstance(data, list):  # a states file given as the argument
-            return _from_states(data, controller, transitions, failed)
-        return _from_controller(controller, data, transitions, failed)
+            return _from_states(data, controller, transitions, failed, robot)
+        return _from_controller(controller, data, transitions, failed, robot, quiet)
     if states_file == "-":  # e.g. bstool states best.json | bstool simulate --states -
         text = sys.stdin.read(fileio.MAX_JSON_BYTES + 1)
         if len(text) > fileio.MAX_JSON_BYTES:
@@ -301,23 +316,25 @@ def _load_source(
                 f"states on <stdin> are larger than {fileio.MAX_JSON_BYTES // 2**20} MiB"
             )
         data = fileio.loads_json(text, "<stdin>", "states")
-        return _from_states(data, "<stdin>", transitions, failed)
+        return _from_states(data, "<stdin>", transitions, failed, robot)
     if states_file:
         data = fileio.read_json(states_file, "states file")
-        return _from_states(data, states_file, transitions, failed)
+        return _from_states(data, states_file, transitions, failed, robot)
     if example:
         data = json.loads((resources.files("bstool") / "data" / EXAMPLE).read_text("utf-8"))
-        return _from_states(data, f"built-in example ({EXAMPLE})", transitions, failed)
+        return _from_states(data, f"built-in example ({EXAMPLE})", transitions, failed, robot)
     from bstool.builtin import builtin_controller
 
     path = builtin_controller(model)
-    return _from_controller(str(path), fileio.read_json(path), transitions, failed)
+    return _from_controller(str(path), fileio.read_json(path), transitions, failed, robot, quiet)
 
 
-def _from_states(data: Any, label: str, transitions: int | None, failed: tuple[str, ...]) -> Source:
+def _from_states(
+    data: Any, label: str, transitions: int | None, failed: tuple[str, ...], robot: str | None
+) -> Source:
     from bstool.sim.states import hold_failed, states_from_json
 
-    spec = RobotSpec()
+    spec = resolve_robot(robot, quiet=True).spec  # a states file records no robot
     states = states_from_json(data, spec, where=label)
     if transitions is not None:
         if transitions + 1 > len(states):
@@ -332,7 +349,12 @@ def _from_states(data: Any, label: str, transitions: int | None, failed: tuple[s
 
 
 def _from_controller(
-    path: str, data: Any, transitions: int | None, failed: tuple[str, ...]
+    path: str,
+    data: Any,
+    transitions: int | None,
+    failed: tuple[str, ...],
+    robot: str | None = None,
+    quiet: bool = False,
 ) -> Source:
     if not isinstance(data, dict):
         raise InputError(
@@ -343,7 +365,7 @@ def _from_controller(
     from bstool.sim.states import validate_states
 
     ctrl = load_controller(path)
-    spec = RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k)
+    spec = resolve_robot(robot, ctrl.robot, path, quiet=quiet).spec
     mids = [parse_module(f, spec.legs, spec.modules) for f in failed]
     if transitions is None:
         transitions = ctrl.max_trans if ctrl.max_trans is not None else DEFAULT_TRANSITIONS

@@ -80,12 +80,14 @@ def run_model(
     period: float | None,
     timing_file: str | None = None,
     other_builds: int = 0,
+    spec: Any = None,
 ) -> tuple[SimResult, dict[str, Any]]:
     """Play ``states`` (``ctrl``'s, from the file ``where``) on the schedule model of
     ``ctrl.model``; the result and what to add to the output. ``period`` None: the one
     ``ctrl`` was evolved at, else compile's; ``timing_file`` None: the one it was evolved
     with, else the estimate. ``other_builds`` N: also each distance on N builds it was not
-    scored on (random controllers after the ones its run used), and their mean."""
+    scored on (random controllers after the ones its run used), and their mean. ``spec``:
+    the robot (a RobotSpec; None: the default)."""
     from bstool import timingfile
     from bstool.compile.build import default_period
     from bstool.robot import RobotSpec
@@ -103,15 +105,16 @@ def run_model(
 
     def fitted_on(count: int) -> ScheduleSource:
         return schedule_model(ctrl.model, period=period, legs=ctrl.legs, modules=ctrl.modules,
-                              timing=timing, builds=count)  # fmt: skip
+                              timing=timing, builds=count, spec=spec)  # fmt: skip
 
     fitted = fitted_on(builds)
     schedules = schedules_of(fitted, states)
-    sim = Simulator(RobotSpec(legs=ctrl.legs, modules=ctrl.modules, states=ctrl.k))
+    robot = spec if spec is not None else RobotSpec(legs=ctrl.legs, modules=ctrl.modules)
+    sim = Simulator(robot)
     runs = [sim.run_schedule(s) for s in schedules]
     result, schedule = runs[0], schedules[0]  # the path shown: the first build's
     distances = [float(r.distance) for r in runs]
-    used = default_period(ctrl.legs, ctrl.modules) if period is None else period
+    used = default_period(ctrl.legs, ctrl.modules, robot) if period is None else period
     gaps = np.diff(schedule.samples)
     out: dict[str, Any] = {
         "timing": f"the schedule model of {ctrl.model} (builds at period {used:g} s, mean "

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import click
 
 import hil_mock  # noqa: F401  (registers the twin's bstwin:// serial URL handler)
+from bstool.commands.robot_option import resolve_robot, robot_option
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId, parse_failure_time, parse_module
 from hil_mock.perturb import Perturbation, perturb_options
@@ -90,6 +91,7 @@ if TYPE_CHECKING:
     help="A bstool.timing/1 file (bstool probe): the stamps' measured timing model.",
 )
 @perturb_options()  # --timing-scale --timing-spread --clock-spread --start-spread --reset ...
+@robot_option
 def command(
     build: str,
     transitions: int,
@@ -108,6 +110,7 @@ def command(
     quiet: bool,
     timing_file: str | None,  # issue 13 §2
     perturb: Perturbation,
+    robot: str | None,
 ) -> None:
     """Run BUILD (a `bstool compile` output) on the twin: every module's program on its own
     virtual BS2sx, the modules wired as WIRING.md says, each servo driving the simulated robot.
@@ -130,6 +133,10 @@ def command(
 
     timing = measured.load(timing_file)  # issue 13 §2: the measured timing model
     b = buildfile.load(build)  # refuses a build whose images differ from the manifest
+    if robot is not None:  # the build's programs on another robot's physics
+        from hil_mock.body import with_robot
+
+        b = with_robot(b, resolve_robot(robot, b.manifest.robot_values, build, quiet=as_json))
     fail_ids = [parse_module(f, b.legs, b.modules) for f in failed]
     die_at = dict(parse_failure_time(d, b.legs, b.modules) for d in die)
     parsed = [_parse_cut(c, b.legs, b.modules) for c in cut]

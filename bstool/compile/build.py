@@ -30,6 +30,8 @@ from bstool.compile.wiring import wiring as wiring_md
 from bstool.controllers import Controller, controller_hash, load_controller
 from bstool.errors import BstoolError, BuildError, InputError, SourceError
 from bstool.moduleid import ModuleId, parse_module
+from bstool.robot import RobotSpec
+from bstool.robot.robotfile import Robot, resolve
 from bstool.timingfile import TimingModel
 from bstool.tokenizer import Project, tokenize_source
 
@@ -49,11 +51,11 @@ class BuildResult:
     manifest: buildfile.Manifest
 
 
-def default_period(legs: int, modules: int) -> float:
-    """The simulator's transition time for this robot (``RobotSpec.transition_time``)."""
-    from bstool.robot import RobotSpec
-
-    return float(RobotSpec(legs=legs, modules=modules).transition_time)
+def default_period(legs: int, modules: int, spec: RobotSpec | None = None) -> float:
+    """The simulator's transition time for this robot (``RobotSpec.transition_time``: the
+    servo's full-range time with margin); ``spec``: a robot file's robot."""
+    robot = spec if spec is not None else RobotSpec(legs=legs, modules=modules)
+    return float(robot.transition_time)
 
 
 def ram_estimate(plan: ModulePlan) -> int:
@@ -74,8 +76,13 @@ def compile_controller(
     progress: bool = False,
     force: bool = False,
     timing: TimingModel | str | os.PathLike[str] | None = None,
+    robot: Robot | str | os.PathLike[str] | None = None,
 ) -> BuildResult:
     """Compile ``controller`` into ``out_dir`` (replaced as a whole, never half-written).
+
+    ``robot``: a robot file (or ``Robot``) to compile for instead of the one the controller
+    recorded (default: that one, else the default robot); it sets the default period and is
+    recorded in the build.
 
     ``out_dir`` may be new, empty, or a previous build; anything else is refused unless
     ``force`` (and never when it holds the controller or calibration file).
@@ -94,6 +101,7 @@ def compile_controller(
         force=force,
         protect=(controller,),
         timing=timing,
+        robot=robot,
     )
 
 
@@ -110,6 +118,7 @@ def compile_loaded(
     force: bool = False,
     protect: Sequence[str | os.PathLike[str]] = (),
     timing: TimingModel | str | os.PathLike[str] | None = None,
+    robot: Robot | str | os.PathLike[str] | None = None,
 ) -> BuildResult:
     """Compile a loaded controller (see :func:`compile_controller`). ``timing``: a measured
     timing model or its bstool.timing/1 file, for the timing estimates and the waits computed
@@ -117,10 +126,14 @@ def compile_loaded(
     if timing is not None and not isinstance(timing, TimingModel):
         timing = timingfile.load(timing)
     model = CompileTiming() if timing is None else CompileTiming(timing)
+    if robot is not None and not isinstance(robot, Robot):
+        protect = (*protect, robot)
+    chosen, _note = resolve(robot, ctrl.robot, what=source_name)
+    recorded = chosen.to_json() if robot is not None or ctrl.robot is not None else None
     return _compile_loaded(
         ctrl, out_dir, source_name=source_name, calibration=calibration, period=period,
         modules=modules, tokenize=tokenize, progress=progress, force=force, protect=protect,
-        model=model,
+        model=model, robot=chosen, robot_values=recorded,
     )  # fmt: skip
 
 
@@ -137,6 +150,8 @@ def _compile_loaded(
     force: bool,
     protect: Sequence[str | os.PathLike[str]],
     model: CompileTiming,
+    robot: Robot,
+    robot_values: dict[str, Any] | None,
 ) -> BuildResult:
     out = Path(out_dir)
     protect = (*protect, *((calibration,) if calibration is not None else ()))
@@ -146,7 +161,7 @@ def _compile_loaded(
         DEFAULT if calibration is None else load_calibration(calibration, ctrl.legs, ctrl.modules)
     )
     if period is None:
-        period = default_period(ctrl.legs, ctrl.modules)
+        period = default_period(ctrl.legs, ctrl.modules, robot.spec)
     if not period > 0:
         raise InputError(f"--period must be > 0 seconds, got {period}")
     only: list[ModuleId] = []
@@ -174,7 +189,9 @@ def _compile_loaded(
         _module(plan, estimates(plan, nominal), tokenize)
         for plan in tqdm(plans, desc="compile", unit="module", disable=not progress, leave=False)
     ]
-    manifest = describe.manifest(ctrl, source_name, full_hash, period, results, tokenize)
+    manifest = describe.manifest(
+        ctrl, source_name, full_hash, period, results, tokenize, robot_values
+    )
     wiring = wiring_md(ctrl, full_hash, results, manifest)
     _write_atomically(out, results, manifest, wiring, ctrl.to_json())
     return BuildResult(out, full_hash, results, tokenize, manifest)

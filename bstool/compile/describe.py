@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+from typing import Any
 
 from bstool import buildfile as bf
 from bstool.compile.plan import ModulePlan
@@ -125,8 +126,10 @@ def manifest(
     period: float,
     results: list[ModuleResult],
     tokenized: bool,
+    robot_values: dict[str, Any] | None = None,
 ) -> bf.Manifest:
-    """The build's manifest (bstool.build/1) for ``results``."""
+    """The build's manifest (bstool.build/1) for ``results``; ``robot_values``: the robot it
+    is compiled for when not the default (``Robot.to_json``)."""
     wires = [
         bf.Wire(lk.master, lk.master_pin, lk.slave, lk.slave_pin, lk.colour, lk.bypass)
         for lk in links(ctrl.model, ctrl.legs, ctrl.modules)
@@ -156,4 +159,5 @@ def manifest(
         modules=[_module(ctrl, res) for res in results],
         links=wires,
         flash_order=order,
+        robot_values=robot_values,
     )

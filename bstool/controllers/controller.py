@@ -34,7 +34,7 @@ _RULE_FIELDS = {
     "nnsin": ("weights",),
 }
 _COMMON = ("format", "model", "legs", "modules", "states", "initial_states")
-_OPTIONAL = ("fitness", "max_trans", "ga", "seed", "bstool_version")
+_OPTIONAL = ("fitness", "max_trans", "ga", "seed", "bstool_version", "robot")
 _HINT = "see docs/controllers.md for the format, or regenerate the file with `bstool evolve`"
 
 IntArray = npt.NDArray[np.int64]
@@ -70,6 +70,10 @@ class Controller:
     ga: dict[str, Any] | None = None
     seed: int | None = None
     bstool_version: str = field(default=__version__)
+    # the robot it was evolved for (bstool.robot.robotfile.Robot.to_json; checked by the robot
+    # package when used); None: the default robot, and the key is not written (hashes of
+    # controllers evolved without a robot file do not change)
+    robot: dict[str, Any] | None = None
 
     def rules(self) -> IntArray:
         """The CA rule tables: (1, 4096) or (2, 4096) (control rule, leg rule)."""
@@ -336,6 +340,8 @@ class Controller:
         obj["ga"] = self.ga
         obj["seed"] = self.seed
         obj["bstool_version"] = self.bstool_version
+        if self.robot is not None:
+            obj["robot"] = self.robot
         return obj
 
     def hash(self) -> str:
@@ -403,6 +409,9 @@ def from_json(obj: Any, source: str = "controller") -> Controller:
     seed = obj.get("seed")
     if seed is not None:
         v.int_in("seed", seed, 0, 2**128)
+    robot = obj.get("robot")
+    if robot is not None and not isinstance(robot, dict):
+        v.fail("robot", f"expected an object (a robot's values) or null, got {_kind(robot)}")
     version = obj.get("bstool_version", __version__)
     if not isinstance(version, str):
         v.fail("bstool_version", f"expected a string, got {_kind(version)}")
@@ -417,6 +426,7 @@ def from_json(obj: Any, source: str = "controller") -> Controller:
         ga=ga,
         seed=seed,
         bstool_version=version,
+        robot=robot,
         **fields,
     )
 
@@ -433,6 +443,7 @@ def make_controller(
     max_trans: int | None = None,
     ga: dict[str, Any] | None = None,
     seed: int | None = None,
+    robot: dict[str, Any] | None = None,
 ) -> Controller:
     """Build a validated controller from arrays. NN models read only the leads of
     ``initial_states`` (shape (n, m) or (n,)); the rest is propagated (R^0)."""
@@ -453,6 +464,8 @@ def make_controller(
     for name in _RULE_FIELDS.get(model, ()):
         obj[name] = np.asarray(given[name]).tolist()
     obj.update(fitness=fitness, max_trans=max_trans, ga=ga, seed=seed, bstool_version=__version__)
+    if robot is not None:
+        obj["robot"] = robot
     return from_json(obj, f"{model} controller")
 
 

@@ -23,9 +23,11 @@ import numpy as np
 from bstool import fileio
 from bstool.controllers import save_controller
 from bstool.errors import InputError
-from bstool.evolve.engine import GAParams, HistoryRow, RunState
+from bstool.evolve.engine import GAParams, HistoryRow, RunState, Validated
 from bstool.evolve.fitness import FitnessCache
 from bstool.evolve.problem import Problem
+from bstool.evolve.randomize import Randomize
+from bstool.robot import robotfile
 from bstool.version import __version__
 
 CHECKPOINT = "checkpoint.npz"
@@ -33,14 +35,19 @@ BEST = "best.json"
 HISTORY = "history.csv"
 FORMAT = "bstool.evolve-checkpoint/1"
 HISTORY_FIELDS = ["generation", "best", "mean", "population", "evaluations"]
+VALIDATION_FIELD = "validation"  # --randomize runs: the best's validation mean (or empty)
 
 
-def history_csv(rows: list[HistoryRow]) -> str:
+def history_csv(rows: list[HistoryRow], validation: bool = False) -> str:
+    """history.csv; ``validation`` (a randomized run) adds the validation column."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(HISTORY_FIELDS)
+    writer.writerow(HISTORY_FIELDS + ([VALIDATION_FIELD] if validation else []))
     for r in rows:
-        writer.writerow([r.generation, repr(r.best), repr(r.mean), r.population, r.evaluations])
+        line = [r.generation, repr(r.best), repr(r.mean), r.population, r.evaluations]
+        if validation:
+            line.append("" if r.validation is None else repr(r.validation))
+        writer.writerow(line)
     return buf.getvalue()
 
 
@@ -59,6 +66,7 @@ def read_history(path: str | os.PathLike[str]) -> list[HistoryRow]:
     out = []
     for line, r in enumerate(rows, start=2):
         try:
+            value = r.get(VALIDATION_FIELD) or None
             out.append(
                 HistoryRow(
                     int(r["generation"]),
@@ -66,6 +74,7 @@ def read_history(path: str | os.PathLike[str]) -> list[HistoryRow]:
                     float(r["mean"]),
                     r["population"],
                     int(r["evaluations"]),
+                    None if value is None else float(value),
                 )
             )
         except (TypeError, ValueError) as exc:
@@ -79,11 +88,11 @@ def save_outputs(state: RunState, out: str | os.PathLike[str], extra: dict[str, 
     best = state.best_controller(evaluation_settings(extra))
     if best is not None:
         save_controller(best, d / BEST)
-    fileio.write_text(d / HISTORY, history_csv(state.history))
+    fileio.write_text(d / HISTORY, history_csv(state.history, state.randomize is not None))
     save_checkpoint(state, d / CHECKPOINT, extra)
 
 
-EVALUATION_KEYS = ("stamp_timed", "period", "timing", "schedule_builds")
+EVALUATION_KEYS = ("stamp_timed", "period", "timing", "schedule_builds", "randomize")
 """The run's evaluation settings (``extra``) that best.json's ``ga`` also records."""
 
 
@@ -105,7 +114,7 @@ def save_checkpoint(state: RunState, path: Path, extra: dict[str, Any]) -> None:
         "params": state.params.to_json(),
         "step": state.step,
         "rng": state.rng.bit_generator.state,
-        "history": [vars(r) for r in state.history],
+        "history": [r.to_json() for r in state.history],
         "best_fitness": state.best_fitness if state.best_row is not None else None,
         "best_name": state.best_name,
         "offspring": state.offspring,
@@ -129,6 +138,13 @@ def save_checkpoint(state: RunState, path: Path, extra: dict[str, Any]) -> None:
         arrays["best_partner"] = np.packbits(state.best_partner)
     if state.parasites is not None:
         arrays["parasites"] = state.parasites.astype(np.int16)
+    if state.validated is not None:  # --randomize: best.json's candidate
+        v = state.validated
+        meta["validated"] = {"name": v.name, "validation": v.validation}
+        arrays["validated_row"] = np.packbits(v.row)
+        if v.partner is not None:
+            arrays["validated_partner"] = np.packbits(v.partner)
+        arrays["meta"] = np.array(json.dumps(meta))
     with fileio.atomic_open(path, "wb") as fh:
         np.savez(fh, **arrays)
 
@@ -190,6 +206,19 @@ def load_checkpoint(out: str | os.PathLike[str]) -> tuple[RunState, dict[str, An
         if "parasites" in data:
             state.parasites = data["parasites"].astype(np.int16)
         extra = dict(meta.get("extra", {}))
+        if extra.get("robot") is not None:
+            state.robot = robotfile.from_record(extra["robot"], str(path))
+        if extra.get("randomize") is not None:
+            state.randomize = Randomize.from_json(extra["randomize"])
+        if "validated" in meta:
+            name = meta["validated"]["name"]
+            partner = problem.partner_of(name)
+            state.validated = Validated(
+                name,
+                bits("validated_row", name),
+                None if partner is None else bits("validated_partner", partner),
+                float(meta["validated"]["validation"]),
+            )
     except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as exc:
         raise InputError(
             f"cannot read checkpoint {path}: {exc}", hint="the file is damaged; start a new run"

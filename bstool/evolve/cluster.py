@@ -23,17 +23,24 @@ from bstool.evolve.fitness import Evaluator, EvaluatorFactory
 _LOCAL = threading.local()
 
 
-def evaluate_chunk(factory: EvaluatorFactory, chunk: np.ndarray) -> list[float]:
-    """Task body, run on a worker: build (once per worker thread) and evaluate."""
+def evaluate_chunk(factory: EvaluatorFactory, chunk: np.ndarray, robot: Any = None) -> list[float]:
+    """Task body, run on a worker: build (once per worker thread) and evaluate (on ``robot``,
+    sent as task data: the evaluator cached per factory never holds a draw)."""
     built: dict[Any, Evaluator] = getattr(_LOCAL, "built", None) or {}
     _LOCAL.built = built
     if factory not in built:
         built[factory] = factory.build()
-    return [float(x) for x in built[factory](list(chunk))]
+    ev = built[factory]
+    return [float(x) for x in (ev(list(chunk)) if robot is None else ev(list(chunk), robot=robot))]
 
 
 #: seconds without a worker before a waiting batch says so (once per outage)
 NO_WORKER_NOTICE_S = 30.0
+
+
+def _address(client: Any) -> str:
+    scheduler = getattr(client, "scheduler", None)
+    return str(getattr(scheduler, "address", "the Dask scheduler"))
 
 
 def _warn(message: str) -> None:
@@ -80,7 +87,7 @@ class DaskEvaluator:
             self._own = True
         self.factory = factory
         self.chunk = chunk
-        self.address = address if isinstance(address, str) else self.client.scheduler.address
+        self.address = str(address) if isinstance(address, str) else _address(self.client)
         self.notify = notify or _warn
         self.no_worker_notice_s = no_worker_notice_s
         self.poll_s = poll_s
@@ -93,13 +100,18 @@ class DaskEvaluator:
         threads = max(1, sum(self.client.nthreads().values()))
         return max(1, math.ceil(count / (2 * threads)))  # two tasks per thread: some balance
 
-    def __call__(self, sequences: Sequence[np.ndarray]) -> list[float]:
+    def __call__(self, sequences: Sequence[np.ndarray], robot: Any = None) -> list[float]:
         if not sequences:
             return []
         arr = np.stack([np.asarray(s, dtype=np.uint8) for s in sequences])
         size = self._chunk_size(len(arr))
         chunks = [arr[i : i + size] for i in range(0, len(arr), size)]
-        futures = self.client.map(evaluate_chunk, [self.factory] * len(chunks), chunks, pure=False)
+        n = len(chunks)
+        if isinstance(robot, list | tuple):  # one robot per sequence: chunked alike
+            robots: list[Any] = [list(robot[i : i + size]) for i in range(0, len(arr), size)]
+        else:
+            robots = [robot] * n
+        futures = self.client.map(evaluate_chunk, [self.factory] * n, chunks, robots, pure=False)
         self._wait(futures)
         results = self.client.gather(futures)
         return [x for part in results for x in part]

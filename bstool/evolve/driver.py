@@ -62,6 +62,7 @@ class Generation:
     best_so_far: float  # the fitness of best.json now
     fitness: str  # "physics" | "toy"
     parasite: HistoryRow | None = None  # --coevolve-faults: the parasites' row
+    validation: float | None = None  # --randomize: the best's validation mean, when measured
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,7 @@ class EvolveResult:
     completed: bool
     stats: dict[str, int] = field(default_factory=dict)
     worst_parasite: tuple[tuple[int, int], ...] | None = None  # --coevolve-faults: L.M cells
+    randomize: dict[str, Any] | None = None  # --randomize: its settings (fitness = validation)
 
     @property
     def best_json(self) -> Path | None:
@@ -138,6 +140,10 @@ class Plan:
         return int(self.extra.get("schedule_builds", 0))
 
     @property
+    def randomized(self) -> bool:
+        return self.extra.get("randomize") is not None
+
+    @property
     def period(self) -> float | None:
         """``--period`` of a stamp-timed run (None: compile's default)."""
         value = self.extra.get("period")
@@ -180,14 +186,35 @@ def plan_new(
     period: float | None = None,
     timing: str | os.PathLike[str] | None = None,
     schedule_builds: int | None = None,
+    robot: Any = None,
+    randomize: bool = False,
+    randomize_samples: int | None = None,
+    randomize_score: str | None = None,
+    validate_every: int | None = None,
+    validation_samples: int | None = None,
 ) -> Plan:
+    """A new run, checked; ``robot``: a robot file (or ``bstool.robot.robotfile.Robot``),
+    recorded by value; ``randomize``: score on random robots (docs/evolution.md)."""
+    from bstool.evolve.randomize import Randomize
+
     kind = opt.check_fitness(fitness)
     extra: dict[str, Any] = {"fitness": kind}
     extra.update(opt.stamp_timed_settings(kind, stamp_timed, period, timing, schedule_builds))
+    extra.update(
+        opt.randomize_settings(
+            randomize, randomize_samples, randomize_score, validate_every, validation_samples
+        )
+    )
+    loaded, record = opt.robot_settings(robot)
+    extra.update(record)
     directory, replace = (None, False) if out is None else check_out(out, force=force)
     problem = Problem(opt.check_model(model), transitions=params.transitions)
     file = None if timing is None else str(timing)
-    return Plan(new_run(problem, params), extra, directory, True, replace, timing_file=file)
+    state = new_run(problem, params)
+    state.robot = loaded
+    if "randomize" in extra:
+        state.randomize = Randomize.from_json(extra["randomize"])
+    return Plan(state, extra, directory, True, replace, timing_file=file)
 
 
 def plan_resume(directory: str | os.PathLike[str], given: Mapping[str, Any]) -> Plan:
@@ -206,13 +233,18 @@ def plan_resume(directory: str | os.PathLike[str], given: Mapping[str, Any]) -> 
 
 
 def factory_for(
-    kind: str, problem: Problem, workers: int, schedule_model: ScheduleSource | None = None
+    kind: str,
+    problem: Problem,
+    workers: int,
+    schedule_model: ScheduleSource | None = None,
+    spec: Any = None,
 ) -> EvaluatorFactory:
+    """The run's evaluator factory; ``spec``: the nominal robot (None: the default one)."""
     if kind == "toy":
         return ToyFitness()
     if schedule_model is not None:
-        return StampTimedFitness(schedule_model, problem.legs, problem.modules, workers)
-    return PhysicsFitness(legs=problem.legs, modules=problem.modules, workers=workers)
+        return StampTimedFitness(schedule_model, problem.legs, problem.modules, workers, spec)
+    return PhysicsFitness(legs=problem.legs, modules=problem.modules, workers=workers, spec=spec)
 
 
 def result_of(plan: Plan) -> EvolveResult:
@@ -227,7 +259,13 @@ def result_of(plan: Plan) -> EvolveResult:
     return EvolveResult(
         model=st.problem.model,
         controller=st.best_controller(),
-        fitness=st.best_fitness if st.best_row is not None else float("nan"),
+        fitness=(
+            st.validated.validation
+            if st.validated is not None
+            else st.best_fitness
+            if st.best_row is not None
+            else float("nan")
+        ),
         fitness_kind=plan.fitness,
         history=tuple(st.history),
         params=st.params,
@@ -235,6 +273,7 @@ def result_of(plan: Plan) -> EvolveResult:
         completed=st.done,
         stats=stats,
         worst_parasite=worst,
+        randomize=plan.extra.get("randomize"),
     )
 
 
@@ -259,9 +298,10 @@ def execute(
     schedule_model: ScheduleSource | None = None,
     on_notice: Callable[[str], None] | None = None,
 ) -> EvolveResult:
-    """Run ``plan`` to its end. ``on_notice`` gets what a run has to say while it waits (a
-    cluster with no workers; default: a ``RuntimeWarning``). Physics uses ``workers`` threads (default: the usable CPUs;
+    """Run ``plan`` to its end. Physics uses ``workers`` threads (default: the usable CPUs;
     1 per Dask thread with ``cluster``, an address or a ``dask.distributed.Client``).
+    ``on_notice`` gets what a run has to say while it waits (a cluster with no workers;
+    default: a ``RuntimeWarning``).
     A stamp-timed plan needs ``schedule_model`` (``hil_mock.schedule_model.schedule_model``
     of the plan's model and period: ``bstool evolve --stamp-timed`` derives it)."""
     state = plan.state
@@ -274,10 +314,9 @@ def execute(
         )
     if plan.stamp_timed:
         _check_builds(plan.schedule_builds, schedule_model)
-    factory = (
-        factory_for(plan.fitness, state.problem, threads, schedule_model)
-        if plan.stamp_timed
-        else factory_for(plan.fitness, state.problem, threads)
+    spec = None if state.robot is None else state.robot.spec
+    factory = factory_for(
+        plan.fitness, state.problem, threads, schedule_model if plan.stamp_timed else None, spec
     )
     evaluator: Evaluator
     if cluster:
@@ -315,6 +354,7 @@ def execute(
                     st.best_fitness,
                     plan.fitness,
                     parasite,
+                    row.validation,
                 )
             )
 
@@ -359,8 +399,17 @@ def evolve(
     schedule_model: ScheduleSource | None = None,
     timing: str | os.PathLike[str] | None = None,
     schedule_builds: int | None = None,
+    robot: Any = None,
+    randomize: bool = False,
+    randomize_samples: int | None = None,
+    randomize_score: str | None = None,
+    validate_every: int | None = None,
+    validation_samples: int | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
+
+    ``robot``: a robot file or ``bstool.robot.robotfile.Robot`` (``--robot``); ``randomize``
+    and the ``randomize_*``/``validat*`` keywords: ``--randomize`` and its options.
 
     ``stamp_timed=True`` (``--stamp-timed``, ``period`` = ``--period``, ``timing`` =
     ``--timing``, a bstool.timing/1 file recorded by sha256, ``schedule_builds`` =
@@ -392,7 +441,10 @@ def evolve(
     opt.check_workers(workers)
     plan = plan_new(
         model, params, fitness=fitness, out=out, force=force, stamp_timed=stamp_timed,
-        period=period, timing=timing, schedule_builds=schedule_builds,
+        period=period, timing=timing, schedule_builds=schedule_builds, robot=robot,
+        randomize=randomize, randomize_samples=randomize_samples,
+        randomize_score=randomize_score, validate_every=validate_every,
+        validation_samples=validation_samples,
     )  # fmt: skip
     return execute(
         plan,

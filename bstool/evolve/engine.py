@@ -17,8 +17,15 @@ import numpy as np
 from bstool.controllers import Controller
 from bstool.controllers.reference import NN_MODELS
 from bstool.evolve.fitness import Evaluator, FitnessCache
-from bstool.evolve.ga import Bits, best_index, next_generation
+from bstool.evolve.ga import Bits, best_index, clean_fitness, next_generation
 from bstool.evolve.problem import Problem
+from bstool.evolve.randomize import (
+    Randomize,
+    combine,
+    training_robots,
+    validates,
+    validation_robots,
+)
 from bstool.evolve.scoring import (
     ROBUST_MODES,
     Parasites,
@@ -29,6 +36,7 @@ from bstool.evolve.scoring import (
     score_plain,
     score_robust,
 )
+from bstool.robot.robotfile import Robot
 
 MAX_COEVOL_GENERATION = 20  # §3.4
 
@@ -86,6 +94,24 @@ class HistoryRow:
     mean: float
     population: str
     evaluations: int
+    validation: float | None = None  # --randomize: the best's mean over the validation robots
+
+    def to_json(self) -> dict[str, Any]:
+        """The row (``validation`` only when measured: a plain run's record is unchanged)."""
+        out = asdict(self)
+        if self.validation is None:
+            del out["validation"]
+        return out
+
+
+@dataclass
+class Validated:
+    """--randomize: the candidate with the best validation mean so far (best.json's)."""
+
+    name: str
+    row: Bits
+    partner: Bits | None
+    validation: float
 
 
 @dataclass
@@ -105,6 +131,9 @@ class RunState:
     offspring: int = 0
     offspring_skipped: int = 0
     parasites: Parasites | None = None  # --coevolve-faults: (Q, K_max) module indices
+    robot: Robot | None = None  # --robot: the nominal robot and its ranges (None: the default)
+    randomize: Randomize | None = None  # --randomize
+    validated: Validated | None = None  # --randomize: the best on the validation robots
 
     @property
     def total_steps(self) -> int:
@@ -131,14 +160,21 @@ class RunState:
         (``--stamp-timed``, its period and timing file), added to its ``ga`` settings."""
         if self.best_row is None:
             return None
+        name, row, partner, fitness = (
+            self.best_name, self.best_row, self.best_partner, self.best_fitness
+        )  # fmt: skip
+        if self.validated is not None:  # --randomize: the best on the validation robots
+            v = self.validated
+            name, row, partner, fitness = v.name, v.row, v.partner, v.validation
         return self.problem.controller(
-            self.best_name,
-            self.best_row,
-            self.best_partner,
-            fitness=self.best_fitness,
+            name,
+            row,
+            partner,
+            fitness=fitness,
             max_trans=self.params.transitions,
             ga={**self.params.to_json(), **(evaluation or {})},
             seed=self.params.seed,
+            robot=None if self.robot is None else self.robot.to_json(),
         )
 
     def stats(self) -> dict[str, int]:
@@ -175,14 +211,45 @@ def new_run(problem: Problem, params: GAParams) -> RunState:
 
 
 def score(state: RunState, name: str, partner: Bits | None, evaluator: Evaluator) -> Scored:
-    """Fitness of population ``name`` under the run's scoring mode (one evaluator call)."""
+    """Fitness of population ``name`` under the run's scoring mode (one evaluator call per
+    robot: one, or the step's K with ``--randomize``)."""
     p, bits = state.params, state.populations[name]
     args = (state.problem, name, bits, partner, state.cache, evaluator)
-    if p.robust is not None:
-        return score_robust(*args, p.robust)
-    if state.parasites is not None:
-        return score_faults(*args, state.parasites)
-    return score_plain(*args)
+
+    def on(robot: Any) -> Scored:
+        if p.robust is not None:
+            return score_robust(*args, p.robust, robot)
+        if state.parasites is not None:
+            return score_faults(*args, state.parasites, robot)
+        return score_plain(*args, robot)
+
+    if state.randomize is None:
+        return on(None)
+    robots = training_robots(state.robot or Robot(), state.randomize, p.seed, state.step)
+    parts = [on(r) for r in robots]
+    parasite = None
+    if parts[0].parasite_fitness is not None:
+        found = [x.parasite_fitness for x in parts if x.parasite_fitness is not None]
+        parasite = np.mean(found, axis=0)
+    return Scored(
+        combine(np.stack([x.fitness for x in parts]), state.randomize.score),
+        np.all([x.known for x in parts], axis=0),
+        sum(x.paid for x in parts),
+        parasite,
+    )
+
+
+def validate(
+    state: RunState, name: str, row: Bits, partner: Bits | None, evaluator: Evaluator
+) -> tuple[float, int]:
+    """The mean distance of one candidate (its plain run) over the validation robots, and the
+    evaluations it cost (repeats are cached)."""
+    assert state.randomize is not None
+    robots = validation_robots(state.robot or Robot(), state.randomize, state.params.seed)
+    seq = state.problem.sequences(name, row[None], partner)
+    raw, _known, paid = state.cache.evaluate(np.repeat(seq, len(robots), axis=0), evaluator,
+                                             robots)  # fmt: skip
+    return float(np.mean(clean_fitness(raw))), paid
 
 
 def evolve_step(state: RunState, evaluator: Evaluator) -> HistoryRow:
@@ -202,13 +269,21 @@ def evolve_step(state: RunState, evaluator: Evaluator) -> HistoryRow:
     state.history.append(row)
     i = best_index(fitness)
     state.best_of[name] = bits[i].copy()
-    # Against parasites, fitness depends on the parasites of the moment: scores of different
-    # generations are not comparable, so the best is the best of the latest generation.
-    if fitness[i] > state.best_fitness or state.parasites is not None:
+    # Against parasites or random robots, fitness depends on the parasites or robots of the
+    # moment: scores of different generations are not comparable, so the best is the best of
+    # the latest generation (and with --randomize, best.json is the best validated one).
+    changing = state.parasites is not None or state.randomize is not None
+    if fitness[i] > state.best_fitness or changing:
         state.best_fitness = float(fitness[i])
         state.best_name = name
         state.best_row = bits[i].copy()
         state.best_partner = None if partner is None else partner.copy()
+    if state.randomize is not None and validates(state.randomize, state.step, state.total_steps):
+        value, paid = validate(state, name, bits[i], partner, evaluator)
+        row.validation, row.evaluations = value, row.evaluations + paid
+        if state.validated is None or value > state.validated.validation:
+            kept = None if partner is None else partner.copy()
+            state.validated = Validated(name, bits[i].copy(), kept, value)
     p = state.params
     state.populations[name] = next_generation(bits, fitness, p.pc, p.pm, state.rng)
     if state.parasites is not None and scored.parasite_fitness is not None:

@@ -1,10 +1,11 @@
 """Fitness evaluation: the evaluator protocol, the state-sequence cache, and the evaluators.
 
 An *evaluator* is any callable taking a list of state sequences ((T+1, n, m) arrays) and
-returning one fitness per sequence, in order. Physics is the whole cost, and the controllers
-are open loop, so fitness is a function of the state sequence alone: :class:`FitnessCache`
-keys it by a hash of the sequence and never pays twice for the same one (elites, clones, and
-CA offspring whose mutations only touched rule entries their run never reads).
+returning one fitness per sequence, in order; ``robot=`` (a :class:`~bstool.robot.RobotSpec`)
+runs them on another robot's physics (``--randomize``). Physics is the whole cost, and the
+controllers are open loop, so fitness is a function of the state sequence and the robot alone:
+:class:`FitnessCache` keys it by a hash of both and never pays twice for the same one (elites,
+clones, and CA offspring whose mutations only touched rule entries their run never reads).
 
 Evaluators are built from small frozen *factories* (picklable, hashable), so a cluster worker
 can build each one once and reuse it.
@@ -13,6 +14,7 @@ can build each one once and reuse it.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import threading
 from collections.abc import Callable, Sequence
@@ -23,20 +25,40 @@ import numpy as np
 import numpy.typing as npt
 
 Sequences = npt.NDArray[np.uint8]
-Evaluator = Callable[[Sequence[np.ndarray]], Sequence[float]]
+#: ``evaluator(sequences, robot=None)``: one fitness per sequence (``robot``: a RobotSpec)
+Evaluator = Callable[..., Sequence[float]]
 
 
 class EvaluatorFactory(Protocol):
     def build(self) -> Evaluator: ...
 
 
-def sequence_key(seq: np.ndarray) -> bytes:
-    """128-bit digest of a state sequence (shape and values)."""
+def sequence_key(seq: np.ndarray, robot: bytes = b"") -> bytes:
+    """128-bit digest of a state sequence (shape and values), and of the robot it runs on
+    (``robot_key``; empty for the run's nominal robot, so a plain run's keys never change)."""
     arr = np.ascontiguousarray(seq, dtype=np.uint8)
     h = hashlib.blake2b(digest_size=16)
     h.update(repr(arr.shape).encode())
     h.update(arr.tobytes())
+    if robot:
+        h.update(b"robot:" + robot)
     return h.digest()
+
+
+def _per_row(robot: Any, count: int) -> list[Any]:
+    if robot is None or not isinstance(robot, list | tuple):
+        return [robot] * count
+    if len(robot) != count:
+        raise ValueError(f"{len(robot)} robots for {count} sequences")
+    return list(robot)
+
+
+def robot_key(robot: Any) -> bytes:
+    """A digest of a robot's values (a RobotSpec); empty for None (the nominal robot)."""
+    if robot is None:
+        return b""
+    text = json.dumps(robot.to_dict(), sort_keys=True)
+    return hashlib.blake2b(text.encode(), digest_size=16).digest()
 
 
 class FitnessCache:
@@ -48,17 +70,26 @@ class FitnessCache:
         self.hits = 0
 
     def evaluate(
-        self, sequences: Sequences, evaluator: Evaluator
+        self, sequences: Sequences, evaluator: Evaluator, robot: Any = None
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.bool_], int]:
-        """Fitness of every row; (fitness, row was already known, evaluations paid)."""
-        keys = [sequence_key(s) for s in sequences]
+        """Fitness of every row on ``robot`` (None: the nominal one; a sequence: one robot per
+        row); (fitness, row was already known, evaluations paid)."""
+        robots = _per_row(robot, len(sequences))
+        keys = [sequence_key(s, robot_key(r)) for s, r in zip(sequences, robots, strict=True)]
         known = np.array([k in self.table for k in keys], dtype=bool)
         todo: dict[bytes, int] = {}
         for row, key in enumerate(keys):
             if key not in self.table and key not in todo:
                 todo[key] = row
         if todo:
-            values = list(evaluator([sequences[row] for row in todo.values()]))
+            rows = [sequences[row] for row in todo.values()]
+            on = [robots[row] for row in todo.values()]
+            if all(r is None for r in on):
+                values = list(evaluator(rows))
+            elif all(r is on[0] for r in on):
+                values = list(evaluator(rows, robot=on[0]))
+            else:
+                values = list(evaluator(rows, robot=on))
             if len(values) != len(todo):
                 raise RuntimeError(f"evaluator returned {len(values)} values for {len(todo)}")
             for key, value in zip(todo, values, strict=True):
@@ -87,17 +118,24 @@ class ToyEvaluator:
 
     Each leg i pushes along its direction (cos 2πi/n, sin 2πi/n) by the alternating sum of its
     modules' state changes; fitness is the length of the summed push, in "state" units / 100.
+    On another ``robot`` it is scaled by (friction / 0.4)^½ · (0.09 / module_mass) ·
+    (servo_torque / 0.4), so randomized runs can be tested cheaply.
     """
 
-    def __call__(self, sequences: Sequence[np.ndarray]) -> list[float]:
+    def __call__(self, sequences: Sequence[np.ndarray], robot: Any = None) -> list[float]:
         out = []
-        for seq in sequences:
+        for seq, on in zip(sequences, _per_row(robot, len(sequences)), strict=True):
+            scale = 1.0
+            if on is not None:
+                scale = (
+                    math.sqrt(on.friction / 0.4) * (0.09 / on.module_mass) * (on.servo_torque / 0.4)
+                )
             s = np.asarray(seq, dtype=np.float64)
             n, m = s.shape[1], s.shape[2]
             sign = np.where(np.arange(m) % 2 == 0, 1.0, -1.0)
             push = (np.diff(s, axis=0) * sign).sum(axis=(0, 2))  # per leg
             ang = 2 * math.pi * np.arange(n) / n
-            out.append(float(math.hypot(push @ np.cos(ang), push @ np.sin(ang)) / 100))
+            out.append(float(math.hypot(push @ np.cos(ang), push @ np.sin(ang)) / 100) * scale)
         return out
 
 
@@ -119,13 +157,12 @@ class PhysicsFitness:
     legs: int = 5
     modules: int = 6
     workers: int = 1
+    spec: Any = None  # the nominal RobotSpec (None: the default robot of legs × modules)
 
     def build(self) -> Evaluator:
-        from bstool.robot import RobotSpec
         from bstool.sim import batch  # mujoco: imported only when physics is used
 
-        spec = RobotSpec(legs=self.legs, modules=self.modules)
-        return PhysicsEvaluator(batch.BatchEvaluator(spec, workers=self.workers))
+        return PhysicsEvaluator(batch.BatchEvaluator(_spec(self), workers=self.workers))
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,14 +178,21 @@ class StampTimedFitness:
     legs: int = 5
     modules: int = 6
     workers: int = 1
+    spec: Any = None  # the nominal RobotSpec (None: the default robot of legs × modules)
 
     def build(self) -> Evaluator:
-        from bstool.robot import RobotSpec
         from bstool.sim import batch
 
-        spec = RobotSpec(legs=self.legs, modules=self.modules)
-        return StampTimedEvaluator(batch.BatchEvaluator(spec, workers=self.workers),
+        return StampTimedEvaluator(batch.BatchEvaluator(_spec(self), workers=self.workers),
                                    self.schedule_model)  # fmt: skip
+
+
+def _spec(factory: Any) -> Any:
+    from bstool.robot import RobotSpec
+
+    if factory.spec is not None:
+        return factory.spec
+    return RobotSpec(legs=factory.legs, modules=factory.modules)
 
 
 class _Stop(Exception):
@@ -167,10 +211,11 @@ class PhysicsEvaluator:
         if self._stop.is_set():
             raise _Stop
 
-    def __call__(self, sequences: Sequence[np.ndarray]) -> list[float]:
+    def __call__(self, sequences: Sequence[np.ndarray], robot: Any = None) -> list[float]:
         self._stop.clear()
         try:
-            results = self.runner.evaluate(list(sequences), progress=self._progress)
+            more = {} if robot is None else {"robot": robot}
+            results = self.runner.evaluate(list(sequences), progress=self._progress, **more)
         except KeyboardInterrupt:
             self._stop.set()
             raise
@@ -187,14 +232,15 @@ class StampTimedEvaluator(PhysicsEvaluator):
         super().__init__(runner)
         self.schedule_model = schedule_model
 
-    def __call__(self, sequences: Sequence[np.ndarray]) -> list[float]:
+    def __call__(self, sequences: Sequence[np.ndarray], robot: Any = None) -> list[float]:
         from bstool.sim.timed import mean_distance, schedules_of
 
         self._stop.clear()
         groups = [schedules_of(self.schedule_model, s) for s in sequences]
         flat = [s for group in groups for s in group]
         try:
-            results = self.runner.evaluate_schedules(flat, progress=self._progress)
+            more = {} if robot is None else {"robot": robot}
+            results = self.runner.evaluate_schedules(flat, progress=self._progress, **more)
         except KeyboardInterrupt:
             self._stop.set()
             raise

@@ -45,6 +45,8 @@ FIXED_ON_RESUME = (
     "parasite_k",
     "stamp_timed",
     "schedule_builds",
+    "randomize",
+    "robot",
 )
 
 #: ``--schedule-builds K``: a stamp-timed candidate is played on K builds of random controllers,
@@ -208,6 +210,49 @@ def stamp_timed_settings(
     return out
 
 
+def randomize_settings(
+    randomize: bool,
+    samples: Any = None,
+    score: Any = None,
+    validate_every: Any = None,
+    validation_samples: Any = None,
+) -> dict[str, Any]:
+    """What a run saves for ``--randomize`` and its options (nothing without it)."""
+    from bstool.evolve.randomize import Randomize
+
+    given = {
+        "randomize-samples": samples,
+        "randomize-score": score,
+        "validate-every": validate_every,
+        "validation-samples": validation_samples,
+    }
+    if not randomize:
+        for name, value in given.items():
+            if value is not None:
+                raise InputError(f"--{name} only applies with --randomize", hint="add --randomize")
+        return {}
+    d = Randomize()
+    settings = Randomize(
+        samples=d.samples if samples is None else samples,
+        score=d.score if score is None else score,
+        validate_every=d.validate_every if validate_every is None else validate_every,
+        validation_samples=d.validation_samples if validation_samples is None
+        else validation_samples,
+    )  # fmt: skip
+    return {"randomize": settings.to_json()}
+
+
+def robot_settings(robot: Any) -> tuple[Any, dict[str, Any]]:
+    """``--robot`` (a robot file, or a ``Robot``): the robot and what the run records (its
+    values, not the path; nothing without it)."""
+    if robot is None:
+        return None, {}
+    from bstool.robot import robotfile
+
+    loaded = robot if isinstance(robot, robotfile.Robot) else robotfile.load(robot)
+    return loaded, {"robot": loaded.to_json()}
+
+
 def timing_record(path: str | os.PathLike[str]) -> dict[str, str]:
     """A timing file's name and sha256 (read and checked: a bad file fails before any work)."""
     from bstool import timingfile
@@ -288,6 +333,10 @@ def check_resume(
             continue
         if name == "parasite_k":
             value = list(parasite_range(value))
+        if name == "robot":
+            value = robot_settings(value)[1]["robot"]
+        if name == "randomize" and value is True:
+            value = saved.get(name) or True  # the flag alone: kept settings are fine
         before = saved.get(name)
         if value != before:
             raise InputError(

@@ -17,6 +17,7 @@ sequence's distance is shared by every mode and every candidate that produces it
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -50,9 +51,10 @@ def score_plain(
     partner: Bits | None,
     cache: FitnessCache,
     ev: Evaluator,
+    robot: Any = None,
 ) -> Scored:
     seqs = problem.sequences(name, bits, partner)
-    raw, known, paid = cache.evaluate(seqs, ev)
+    raw, known, paid = cache.evaluate(seqs, ev, robot)
     return Scored(clean_fitness(raw), known, paid)
 
 
@@ -75,10 +77,11 @@ def score_robust(
     cache: FitnessCache,
     ev: Evaluator,
     mode: str,
+    robot: Any = None,
 ) -> Scored:
     seqs = problem.sequences(name, bits, partner)
     n = problem.legs
-    raw, known, paid = cache.evaluate(rotations(seqs, n), ev)
+    raw, known, paid = cache.evaluate(rotations(seqs, n), ev, robot)
     p = len(seqs)
     return Scored(
         combine(raw.reshape(p, n), mode), np.asarray(known.reshape(p, n).all(axis=1)), paid
@@ -173,6 +176,7 @@ def score_faults(
     cache: FitnessCache,
     ev: Evaluator,
     parasites: Parasites,
+    robot: Any = None,
 ) -> Scored:
     """Every host meets every parasite: (Q+1)·P sequences in one batch.
 
@@ -185,7 +189,7 @@ def score_faults(
         problem.sequences(name, bits, partner, failed=parasite_cells(q, m)) for q in parasites
     ]
     p = len(bits)
-    raw, known, paid = cache.evaluate(np.concatenate(batches), ev)
+    raw, known, paid = cache.evaluate(np.concatenate(batches), ev, robot)
     d = clean_fitness(raw).reshape(len(batches), p)  # row 0 healthy, row q+1 parasite q
     host = d.mean(axis=0)
     healthy = d[0]

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from bstool.controllers import Controller, load_controller
 from bstool.robot import RobotSpec
+from bstool.robot.robotfile import Robot, resolve
 
 
 @dataclass
@@ -15,16 +16,20 @@ class Loaded:
     path: str
     controller: Controller
     spec: RobotSpec
+    robot: Robot | None = None  # the robot resolved for it (spec is its nominal values)
+    note: str | None = None  # --robot differs from the robot it was evolved on
 
     @property
     def name(self) -> str:
         return base_label(self.path)
 
 
-def load(path: str) -> Loaded:
+def load(path: str, robot: str | Robot | None = None) -> Loaded:
+    """A controller and the robot to run it on: ``robot`` (``--robot``) if given, else the one
+    it was evolved for (recorded in it), else the default."""
     controller = load_controller(path)
-    spec = RobotSpec(legs=controller.legs, modules=controller.modules, states=controller.k)
-    return Loaded(path, controller, spec)
+    chosen, note = resolve(robot, controller.robot, what=path)
+    return Loaded(path, controller, chosen.spec, chosen, note)
 
 
 def default_transitions(controller: Controller, given: int | None) -> int:

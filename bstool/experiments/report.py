@@ -36,8 +36,9 @@ class Entry:
     history: list[Any] | None
 
 
-def find_entries(inputs: Sequence[str]) -> list[Entry]:
-    """Each input is an evolve run directory (best.json, history.csv) or a controller file."""
+def find_entries(inputs: Sequence[str], robot: Any = None) -> list[Entry]:
+    """Each input is an evolve run directory (best.json, history.csv) or a controller file;
+    each runs on ``robot`` (``--robot``) if given, else on the robot it records."""
     from bstool.evolve.checkpoint import read_history
 
     entries: list[Entry] = []
@@ -50,9 +51,9 @@ def find_entries(inputs: Sequence[str]) -> list[Entry]:
                     f"{p} has no best.json", hint="give `bstool evolve --out` directories"
                 )
             history = read_history(p / "history.csv") if (p / "history.csv").exists() else None
-            entries.append(Entry(p.name, common.load(str(best)), history))
+            entries.append(Entry(p.name, common.load(str(best), robot), history))
         elif p.exists():
-            entries.append(Entry(p.stem, common.load(str(p)), None))
+            entries.append(Entry(p.stem, common.load(str(p), robot), None))
         else:
             raise InputError(f"no such run directory or controller file: {p}")
     labels = common.unique_labels([e.loaded.path for e in entries], [e.name for e in entries])
@@ -75,6 +76,7 @@ def build_report(
     runs_total: Callable[[int], None] | None = None,
     schedule_for: ScheduleFor | None = None,
     evaluation: str = "plain",
+    robot: Any = None,
 ) -> Path:
     """Run every experiment for every input and write ``out_dir/index.html`` (atomically: the
     whole directory appears at once). ``multi_samples`` > 0 adds the multiple-failure curves:
@@ -94,7 +96,7 @@ def build_report(
     out = outputs.check_dir(
         out_dir, "report folder", force=force, ours=is_report, protect=tuple(inputs)
     )
-    entries = find_entries(inputs)
+    entries = find_entries(inputs, robot)
     if not entries:
         raise InputError("nothing to report", hint="give run directories or controller files")
     say = progress or (lambda _msg: None)

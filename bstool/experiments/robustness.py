@@ -72,11 +72,12 @@ class PerturbedSimulator(Simulator):
         self.scale = scale
         self.rng = np.random.default_rng(seed)
 
-    def reset(self, data: mujoco.MjData) -> None:
-        super().reset(data)
-        hinges = slice(7, self.model.nq)  # after the disc's free joint (3 position + 4 quat)
-        data.qpos[hinges] += self.rng.normal(0.0, self.scale, self.model.nq - 7)
-        mujoco.mj_forward(self.model, data)
+    def reset(self, data: mujoco.MjData, model: mujoco.MjModel | None = None) -> None:
+        model = self.model if model is None else model
+        super().reset(data, model)
+        hinges = slice(7, model.nq)  # after the disc's free joint (3 position + 4 quat)
+        data.qpos[hinges] += self.rng.normal(0.0, self.scale, model.nq - 7)
+        mujoco.mj_forward(model, data)
 
 
 def perturbation_spread(

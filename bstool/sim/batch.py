@@ -10,6 +10,7 @@ because every run starts from a fully reset MjData (zero warm start).
 from __future__ import annotations
 
 import threading
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any, Literal
@@ -20,6 +21,7 @@ import numpy as np
 from bstool.cpus import usable_cpus
 from bstool.errors import InputError
 from bstool.robot import RobotSpec
+from bstool.robot.apply import apply_physics, check_applicable
 from bstool.sim.simulator import SimResult, Simulator
 from bstool.sim.states import validate_states
 from bstool.sim.timed import PowerUpCache, StampSchedule, model_copy
@@ -28,6 +30,9 @@ Method = Literal["threads", "rollout", "sequential"]
 DEFAULT_METHOD: Method = "threads"
 # rollout returns the full state at every step; cap one call's output at about this many bytes.
 _ROLLOUT_BYTES = 64 * 2**20
+#: power-up caches kept for robots other than the nominal one (randomized runs draw new robots
+#: every generation: the older ones are dropped first)
+_ROBOT_CACHES = 8
 
 
 def default_workers() -> int:
@@ -64,22 +69,34 @@ class BatchEvaluator:
             mujoco.MjData(self.sim.model) for _ in range(self.workers - 1)
         ]
         self._pool: ThreadPoolExecutor | None = None
-        self._models: list[mujoco.MjModel] = []  # per worker, for stamp-timed runs
+        # per worker: a model copy for stamp-timed runs (their gains change while limp) and
+        # for other robots' physics, and the robot whose physics it has (None: the nominal)
+        self._models: list[mujoco.MjModel] = []
+        self._applied: list[RobotSpec | None] = []
         self.power_ups = PowerUpCache()  # stamp-timed runs' power-ups, by their events
+        self._robot_power_ups: OrderedDict[RobotSpec, PowerUpCache] = OrderedDict()
 
     # -- public ----------------------------------------------------------------------------
     def evaluate(
         self,
         states_list: Sequence[Any],
         progress: Callable[[int], None] | None = None,
+        *,
+        robot: RobotSpec | Sequence[RobotSpec | None] | None = None,
     ) -> list[SimResult]:
         """One :class:`SimResult` per state sequence, in order. ``progress(k)`` is called
-        with the number of newly finished evaluations (from worker threads)."""
+        with the number of newly finished evaluations (from worker threads). ``robot``: run
+        on another robot's physics (same geometry; :mod:`bstool.robot.apply`), written into
+        each worker's model copy when its next job's robot differs; a sequence of robots: one
+        per state sequence; None or the evaluator's own robot: the nominal model, untouched."""
         arrays = [
             validate_states(s, self.spec, where=f"states[{i}]") for i, s in enumerate(states_list)
         ]
         if not arrays:
             return []
+        robots = self._per_job(robot, len(arrays))
+        if robots is not None:
+            return self._threads_jobs(len(arrays), self._varied_job(arrays, robots), progress)
         if self.method == "sequential" or (self.method == "threads" and self.workers == 1):
             return self._sequential(arrays, progress)
         if self.method == "threads":
@@ -90,20 +107,22 @@ class BatchEvaluator:
         self,
         schedules: Sequence[StampSchedule],
         progress: Callable[[int], None] | None = None,
+        *,
+        robot: RobotSpec | Sequence[RobotSpec | None] | None = None,
     ) -> list[SimResult]:
         """Stamp-timed runs (``Simulator.run_schedule``), one per schedule, in order; each
         worker thread has its own model copy (a limp servo changes the model's gains). A
-        power-up (``prefix_end``) simulated before is restored from :attr:`power_ups`."""
+        power-up (``prefix_end``) simulated before is restored from :attr:`power_ups` (one
+        cache per robot). ``robot``: as in :meth:`evaluate`."""
         if not schedules:
             return []
-        if len(self._models) < len(self._datas):
-            self._models = [self.sim.model] + [
-                model_copy(self.sim.model) for _ in range(len(self._datas) - 1)
-            ]
+        robots = self._per_job(robot, len(schedules)) or [None] * len(schedules)
+        caches = {r: self._power_ups(r) for r in dict.fromkeys(robots)}
 
         def job(i: int, w: int) -> SimResult:
+            model = self._worker_model(w, robots[i])
             return self.sim.run_schedule(
-                schedules[i], self._datas[w], model=self._models[w], cache=self.power_ups
+                schedules[i], self._datas[w], model=model, cache=caches[robots[i]]
             )
 
         if self.method == "sequential" or self.workers == 1 or len(schedules) == 1:
@@ -125,6 +144,57 @@ class BatchEvaluator:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    # -- robots ----------------------------------------------------------------------------
+    def _other(self, robot: RobotSpec | None) -> RobotSpec | None:
+        """``robot`` if it is not this evaluator's own (None then); refused if it changes more
+        than physics."""
+        if robot is None or robot == self.spec:
+            return None
+        check_applicable(self.spec, robot)
+        return robot
+
+    def _per_job(
+        self, robot: RobotSpec | Sequence[RobotSpec | None] | None, count: int
+    ) -> list[RobotSpec | None] | None:
+        """Each job's robot (None: every job runs on the nominal model)."""
+        if robot is None or isinstance(robot, RobotSpec):
+            one = self._other(robot)
+            return None if one is None else [one] * count
+        robots = [self._other(r) for r in robot]
+        if len(robots) != count:
+            raise InputError(f"{len(robots)} robots given for {count} runs: give one per run")
+        return None if all(r is None for r in robots) else robots
+
+    def _worker_model(self, w: int, robot: RobotSpec | None) -> mujoco.MjModel:
+        """Worker ``w``'s model copy with ``robot``'s physics (None: the nominal's)."""
+        if not self._models:
+            self._models = [model_copy(self.sim.model) for _ in self._datas]
+            self._applied = [None] * len(self._datas)
+        if self._applied[w] != robot:
+            apply_physics(
+                self._models[w], robot or self.spec, base=self.spec, base_model=self.sim.model
+            )
+            self._applied[w] = robot
+        return self._models[w]
+
+    def _power_ups(self, robot: RobotSpec | None) -> PowerUpCache:
+        if robot is None:
+            return self.power_ups
+        cache = self._robot_power_ups.pop(robot, None) or PowerUpCache()
+        self._robot_power_ups[robot] = cache  # the newest last
+        while len(self._robot_power_ups) > _ROBOT_CACHES:
+            self._robot_power_ups.popitem(last=False)
+        return cache
+
+    def _varied_job(
+        self, arrays: list[np.ndarray], robots: list[RobotSpec | None]
+    ) -> Callable[[int, int], SimResult]:
+        def job(i: int, w: int) -> SimResult:
+            model = self._worker_model(w, robots[i])
+            return self.sim.run_validated(arrays[i], self._datas[w], model=model)
+
+        return job
 
     # -- methods ---------------------------------------------------------------------------
     def _sequential(

@@ -94,13 +94,18 @@ class Simulator:
         data: mujoco.MjData,
         on_chunk: Callable[[mujoco.MjData], None] | None = None,
         chunk_steps: int | None = None,
+        *,
+        model: mujoco.MjModel | None = None,
     ) -> SimResult:
         """Run on ``data`` (own MjData per thread). ``on_chunk`` is called every
-        ``chunk_steps`` steps (video frames); physics is identical either way."""
-        model = self.model
+        ``chunk_steps`` steps (video frames); physics is identical either way. ``model``: a
+        copy of the simulator's model with another robot's physics (``bstool.robot.apply``);
+        the step counts stay this simulator's (a robot's servo speed never changes the
+        controller's period)."""
+        model = self.model if model is None else model
         targets = self.angles(states)
         path = np.empty((len(states), 2))
-        self.reset(data)
+        self.reset(data, model)
         step = _stepper(model, data, on_chunk, chunk_steps)
         data.ctrl[:] = targets[0]
         step(self.settle_steps)
@@ -128,9 +133,10 @@ class Simulator:
                          self.data if data is None else data, schedule, cache)
         )  # fmt: skip
 
-    def reset(self, data: mujoco.MjData) -> None:
-        """Back to the model's initial state: time, qpos, qvel, warm start, ctrl all cleared."""
-        mujoco.mj_resetData(self.model, data)
+    def reset(self, data: mujoco.MjData, model: mujoco.MjModel | None = None) -> None:
+        """Back to the model's initial state: time, qpos, qvel, warm start, ctrl all cleared
+        (``model``: a copy with another robot's physics; default the simulator's own)."""
+        mujoco.mj_resetData(self.model if model is None else model, data)
 
     def steps_for(self, transitions: int) -> int:
         return self.settle_steps + transitions * self.steps_per_transition

@@ -1,0 +1,104 @@
+"""Evolution for an uncertain robot (``bstool evolve --randomize``): each candidate is scored on
+K robots drawn from the robot's uncertain ranges, and the run measures its best on a fixed
+validation set (docs/evolution.md "Randomized physics").
+
+- Common random numbers: every candidate of a step (a generation of one population) meets the
+  same K robots, drawn afresh each step. The draws are a function of the run's seed and the
+  step (:func:`training_robots`, a random stream of their own, so a plain run's stream is
+  unchanged), so a resumed run meets the very robots an uninterrupted one would.
+- The elite is re-scored on each step's robots: the fitness cache keys a distance by its
+  sequence *and* robot, so an old score is never reused for new robots.
+- Score: the mean over the K robots, or the mean of the worst quarter (``worst-quarter``:
+  ⌈K/4⌉ lowest), after the scoring mode (plain, ``--robust``, ``--coevolve-faults``) on each.
+- Validation: every ``validate_every`` steps and at the last one, the step's best runs on
+  ``validation_samples`` robots seeded apart from the training draws; history.csv records the
+  mean, and best.json is the candidate with the best validation mean (scores of different
+  steps met different robots and are not comparable).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from bstool.errors import InputError
+from bstool.robot import RobotSpec
+from bstool.robot.robotfile import Robot
+
+Floats = npt.NDArray[np.float64]
+SCORES = ("mean", "worst-quarter")
+RANDOMIZE_STREAM = 0x52414E44  # "RAND": the training draws' stream
+VALIDATION_STREAM = 0x56414C49  # "VALI": the validation set's
+DEFAULT_SAMPLES = 4
+DEFAULT_VALIDATE_EVERY = 5
+DEFAULT_VALIDATION_SAMPLES = 64
+
+
+@dataclass(frozen=True)
+class Randomize:
+    """The settings of a randomized run (saved with it; fixed on resume)."""
+
+    samples: int = DEFAULT_SAMPLES  # K robots per step
+    score: str = "mean"
+    validate_every: int = DEFAULT_VALIDATE_EVERY
+    validation_samples: int = DEFAULT_VALIDATION_SAMPLES
+
+    def __post_init__(self) -> None:
+        if self.score not in SCORES:
+            raise InputError(
+                f"unknown --randomize-score {self.score!r}", hint=f"one of: {', '.join(SCORES)}"
+            )
+        for name, low in (("samples", 1), ("validate_every", 1), ("validation_samples", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                flag = {"samples": "--randomize-samples", "validate_every": "--validate-every",
+                        "validation_samples": "--validation-samples"}[name]  # fmt: skip
+                raise InputError(f"{flag} must be an integer of at least {low}, got {value!r}")
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "samples": self.samples,
+            "score": self.score,
+            "validate_every": self.validate_every,
+            "validation_samples": self.validation_samples,
+        }
+
+    @classmethod
+    def from_json(cls, obj: Any) -> Randomize:
+        if not isinstance(obj, dict):
+            raise InputError(f"a run's randomize settings must be an object, got {obj!r}")
+        return cls(**obj)
+
+
+def training_robots(robot: Robot, settings: Randomize, seed: int, step: int) -> list[RobotSpec]:
+    """The K robots every candidate of ``step`` meets."""
+    return robot.box.samples(robot.spec, settings.samples, seed=[seed, RANDOMIZE_STREAM, step])
+
+
+def validation_robots(robot: Robot, settings: Randomize, seed: int) -> list[RobotSpec]:
+    """The fixed validation set of a run (the same for every step)."""
+    return robot.box.samples(
+        robot.spec, settings.validation_samples, seed=[seed, VALIDATION_STREAM]
+    )
+
+
+def combine(per_robot: Floats, score: str) -> Floats:
+    """(K, P) distances → P scores: the mean, or the mean of the ⌈K/4⌉ lowest."""
+    if score == "worst-quarter":
+        k = math.ceil(per_robot.shape[0] / 4)
+        return np.asarray(np.sort(per_robot, axis=0)[:k].mean(axis=0), dtype=np.float64)
+    return np.asarray(per_robot.mean(axis=0), dtype=np.float64)
+
+
+def validates(settings: Randomize, step: int, total_steps: int) -> bool:
+    """Whether ``step`` ends with a validation (every ``validate_every`` steps, and the last)."""
+    return step % settings.validate_every == 0 or step == total_steps - 1
+
+
+def draws_json(robots: list[RobotSpec], names: tuple[str, ...]) -> list[dict[str, float]]:
+    """The uncertain values of each robot (for the checkpoint's record)."""
+    return [{n: float(getattr(r, n)) for n in names} for r in robots]

@@ -1,0 +1,227 @@
+"""How far a gait transfers to robots other than the nominal one (``bstool sensitivity``).
+
+Two samples of the robot's uncertain ranges (its robot file's ``[uncertain]`` table, else the
+default box; docs/robot.md "Uncertain robot"):
+
+- one parameter at a time: each range at ``points`` values evenly spread over it (in log for a
+  log-uniform one), the other parameters nominal;
+- jointly: ``samples`` robots drawn from all ranges at once (seeded: every controller meets the
+  same robots, so several compare side by side).
+
+The distances come from the evolve evaluators (plain or stamp-timed physics, local threads or a
+Dask cluster), so a sensitivity run measures exactly what ``evolve --randomize`` scores.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bstool.robot import RobotSpec
+from bstool.robot.robotfile import Robot
+
+SENSITIVITY_STREAM = 0x53454E53  # "SENS": the joint sample's random stream
+DEFAULT_POINTS = 5
+DEFAULT_SAMPLES = 32
+
+#: evaluate(sequences, robots) -> distances (metres), one per (sequence, robot) pair
+Evaluate = Callable[[list[np.ndarray], list[RobotSpec | None]], list[float]]
+
+
+@dataclass(frozen=True)
+class Design:
+    """The robots of one sensitivity run: the sweep of each parameter and the joint sample."""
+
+    robot: Robot
+    sweeps: dict[str, list[tuple[float, RobotSpec]]]  # parameter -> (value, robot) per point
+    joint: list[RobotSpec]
+    seed: int
+
+    @property
+    def count(self) -> int:
+        """Runs per controller: the nominal one, every sweep point and the joint sample."""
+        return 1 + sum(len(v) for v in self.sweeps.values()) + len(self.joint)
+
+    def robots(self) -> list[RobotSpec | None]:
+        """Every robot in run order: None (the nominal), the sweeps, the joint sample."""
+        out: list[RobotSpec | None] = [None]
+        for points in self.sweeps.values():
+            out += [r for _v, r in points]
+        return out + list(self.joint)
+
+
+def design(robot: Robot, *, points: int = DEFAULT_POINTS, samples: int = DEFAULT_SAMPLES,
+           seed: int = 0) -> Design:  # fmt: skip
+    """The robots for ``robot``'s uncertain ranges (its box)."""
+    import dataclasses
+
+    sweeps: dict[str, list[tuple[float, RobotSpec]]] = {}
+    for r in robot.box.ranges:
+        values = r.points(robot.spec, points)
+        change: list[dict[str, Any]] = [{r.name: v} for v in values]
+        sweeps[r.name] = [
+            (v, dataclasses.replace(robot.spec, **c)) for v, c in zip(values, change, strict=True)
+        ]
+    joint = robot.box.samples(robot.spec, samples, seed=[seed, SENSITIVITY_STREAM])
+    return Design(robot, sweeps, joint, seed)
+
+
+@dataclass(frozen=True)
+class Transfer:
+    """One controller's distances over a :class:`Design` (metres)."""
+
+    name: str
+    nominal: float
+    sweeps: dict[str, list[tuple[float, float]]]  # parameter -> (value, distance) per point
+    joint: list[float]
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def mean(self) -> float:
+        return float(np.mean(self.joint))
+
+    @property
+    def p10(self) -> float:
+        return float(np.percentile(self.joint, 10))
+
+    @property
+    def worst(self) -> float:
+        return float(np.min(self.joint))
+
+    @property
+    def worst_tenth(self) -> float:
+        """The mean of the worst 10 % of the joint sample (at least one robot)."""
+        k = max(1, math.ceil(0.1 * len(self.joint)))
+        return float(np.mean(np.sort(self.joint)[:k]))
+
+    @property
+    def kept(self) -> float:
+        """The joint sample's mean as a fraction of the nominal distance."""
+        return self.mean / self.nominal if self.nominal > 0 else 0.0
+
+    def hurts_most(self, name: str) -> tuple[float, float]:
+        """(value, distance) of the sweep point of ``name`` with the shortest distance."""
+        return min(self.sweeps[name], key=lambda p: p[1])
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "nominal": self.nominal,
+            "mean": self.mean,
+            "p10": self.p10,
+            "worst": self.worst,
+            "worst_tenth_mean": self.worst_tenth,
+            "kept": self.kept,
+            "sweeps": {k: [list(p) for p in v] for k, v in self.sweeps.items()},
+            "hurts_most": {
+                k: {"value": self.hurts_most(k)[0], "distance": self.hurts_most(k)[1]}
+                for k in self.sweeps
+            },
+            "joint": list(self.joint),
+            **self.extra,
+        }
+
+
+def measure(name: str, states: np.ndarray, plan: Design, evaluate: Evaluate) -> Transfer:
+    """Run one controller's ``states`` on every robot of ``plan``."""
+    robots = plan.robots()
+    distances = evaluate([states] * len(robots), robots)
+    it = iter(distances)
+    nominal = float(next(it))
+    sweeps = {
+        key: [(value, float(next(it))) for value, _r in points]
+        for key, points in plan.sweeps.items()
+    }
+    joint = [float(next(it)) for _ in plan.joint]
+    return Transfer(name, nominal, sweeps, joint)
+
+
+def chunked(evaluate: Evaluate, size: int, done: Callable[[int], object] | None) -> Evaluate:
+    """``evaluate`` in chunks of ``size`` runs, telling ``done`` after each (progress)."""
+
+    def run(seqs: list[np.ndarray], robots: list[RobotSpec | None]) -> list[float]:
+        out: list[float] = []
+        for start in range(0, len(seqs), size):
+            part = list(evaluate(seqs[start : start + size], robots[start : start + size]))
+            out += part
+            if done is not None:
+                done(len(part))
+        return out
+
+    return run
+
+
+def table(results: Sequence[Transfer], plan: Design) -> str:
+    """The printed table: the joint sample's figures, then the harmful end of each range."""
+    head = (
+        f"{'controller':<24}{'nominal':>9}{'mean':>8}{'p10':>8}{'worst':>8}"
+        f"{'worst10%':>10}{'kept':>7}"
+    )
+    lines = [
+        f"joint sample: {len(plan.joint)} robots (seed {plan.seed}); distances in cm after the "
+        "run, kept = mean / nominal",
+        head,
+    ]
+    for t in results:
+        lines.append(
+            f"{t.name[:23]:<24}{t.nominal * 100:9.2f}{t.mean * 100:8.2f}{t.p10 * 100:8.2f}"
+            f"{t.worst * 100:8.2f}{t.worst_tenth * 100:10.2f}{t.kept:7.0%}"
+        )
+    lines.append("")
+    lines.append("one at a time: the value of each parameter that hurts most (distance there, cm)")
+    for key in plan.sweeps:
+        lo, hi = plan.sweeps[key][0][0], plan.sweeps[key][-1][0]
+        cells = []
+        for t in results:
+            value, dist = t.hurts_most(key)
+            cells.append(f"{t.name[:14]}: {value:.4g} ({dist * 100:.1f})")
+        lines.append(f"  {key} [{lo:.4g}..{hi:.4g}]: " + "; ".join(cells))
+    return "\n".join(lines)
+
+
+def plot(results: Sequence[Transfer], plan: Design, path: str) -> None:
+    """Distance against each parameter (one curve per controller, the nominal value marked)
+    and the joint sample's distribution per controller."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    keys = list(plan.sweeps)
+    panels = len(keys) + 1
+    cols = min(3, panels)
+    rows = math.ceil(panels / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
+    flat = axes.ravel()
+    for ax, key in zip(flat, keys, strict=False):
+        for t in results:
+            xs = [v for v, _d in t.sweeps[key]]
+            ax.plot(xs, [d * 100 for _v, d in t.sweeps[key]], marker="o", ms=3, label=t.name)
+        ax.axvline(float(getattr(plan.robot.spec, key)), color="0.6", ls=":", lw=1)
+        if any(r.name == key and r.distribution == "log-uniform" for r in plan.robot.box.ranges):
+            ax.set_xscale("log")
+        ax.set_xlabel(key)
+        ax.set_ylabel("distance (cm)")
+        ax.grid(alpha=0.3)
+    ax = flat[len(keys)]
+    ax.boxplot([np.array(t.joint) * 100 for t in results], showmeans=True)
+    ax.set_xticks(range(1, len(results) + 1), [t.name[:12] for t in results], rotation=20)
+    ax.scatter(range(1, len(results) + 1), [t.nominal * 100 for t in results], marker="x",
+               color="k", zorder=3, label="nominal")  # fmt: skip
+    ax.set_ylabel("distance (cm)")
+    ax.set_title(f"joint sample ({len(plan.joint)} robots)", fontsize=9)
+    ax.legend(fontsize=7)
+    for extra in flat[panels:]:
+        extra.axis("off")
+    flat[0].legend(fontsize=7)
+    fig.suptitle("How far each gait transfers (dotted: the nominal value)")
+    fig.tight_layout()
+    from bstool import fileio
+
+    with fileio.atomic_open(path, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=110)
+    plt.close(fig)

@@ -1,0 +1,294 @@
+"""``bstool evolve --randomize``: common random numbers, fresh draws each generation, the elite
+re-scored, validation, best.json, resume identical, and every scoring mode and backend."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from bstool.cli import main
+from bstool.evolve import driver
+from bstool.evolve import options as opt
+from bstool.evolve.fitness import ToyEvaluator, sequence_key
+from bstool.evolve.randomize import Randomize, combine, training_robots, validation_robots
+from bstool.robot import RobotSpec
+from bstool.robot.robotfile import Robot
+
+TOY = ["--fitness", "toy", "-q"]
+
+
+class Recorder:
+    """The toy evaluator, remembering which robots each sequence met."""
+
+    def __init__(self) -> None:
+        self.toy = ToyEvaluator()
+        self.calls: list[list[tuple[bytes, Any]]] = []
+
+    def __call__(self, sequences: Sequence[np.ndarray], robot: Any = None) -> list[float]:
+        robots = robot if isinstance(robot, list) else [robot] * len(sequences)
+        self.calls.append([(sequence_key(s), r) for s, r in zip(sequences, robots, strict=True)])
+        return self.toy(sequences, robot=robot)
+
+
+def _plan(model: str = "ca1d", **more: Any) -> driver.Plan:
+    params = opt.ga_params(
+        model,
+        pop=6,
+        gens=more.pop("gens", 4),
+        transitions=6,
+        seed=5,
+        **{k: more.pop(k) for k in ("robust", "coevolve_faults") if k in more},
+    )
+    return driver.plan_new(model, params, fitness="toy", randomize=True, **more)
+
+
+def test_every_candidate_of_a_generation_meets_the_same_robots() -> None:
+    plan = _plan(randomize_samples=3, validate_every=100)
+    ev = Recorder()
+    state = plan.state
+    from bstool.evolve.engine import evolve_step
+
+    met_by_step = []
+    for step in range(3):
+        before = len(ev.calls)
+        seqs = state.problem.sequences("main", state.populations["main"])
+        keys = [sequence_key(s) for s in seqs]
+        evolve_step(state, ev)
+        calls = [c for call in ev.calls[before : before + 3] for c in call]  # then validation
+        robots = training_robots(Robot(), state.randomize, 5, step)  # type: ignore[arg-type]
+        assert [c[1] for c in ev.calls[before]][:1] == [robots[0]]
+        met = {}
+        for key in set(keys):
+            # the first candidate with this sequence met exactly the step's robots (CRN)
+            met[key] = [r for k, r in calls if k == key]
+        for key in set(keys):
+            assert sorted(map(repr, met[key])) == sorted(map(repr, robots))
+        met_by_step.append(robots)
+    assert met_by_step[0] != met_by_step[1] != met_by_step[2]  # drawn afresh each generation
+
+
+def test_the_elite_is_rescored_on_each_generations_robots() -> None:
+    plan = _plan(randomize_samples=2, validate_every=100)
+    ev = Recorder()
+    from bstool.evolve.engine import evolve_step
+
+    state = plan.state
+    evolve_step(state, ev)
+    elite = sequence_key(state.problem.sequences("main", state.populations["main"][:1])[0])
+    evolve_step(state, ev)
+    second = training_robots(Robot(), state.randomize, 5, 1)  # type: ignore[arg-type]
+    seen = [r for call in ev.calls for k, r in call if k == elite]
+    assert all(any(r == s for r in seen) for s in second)
+
+
+def test_draws_are_a_function_of_the_seed_and_step() -> None:
+    s = Randomize(samples=4)
+    assert training_robots(Robot(), s, 1, 3) == training_robots(Robot(), s, 1, 3)
+    assert training_robots(Robot(), s, 1, 3) != training_robots(Robot(), s, 2, 3)
+    assert training_robots(Robot(), s, 1, 3) != training_robots(Robot(), s, 1, 4)
+    valid = validation_robots(Robot(), Randomize(validation_samples=64), 1)
+    assert len(valid) == 64 and not set(map(repr, valid)) & set(
+        map(repr, training_robots(Robot(), Randomize(samples=64), 1, 0))
+    )
+
+
+def test_scores_mean_and_worst_quarter() -> None:
+    d = np.array([[4.0, 1.0], [1.0, 2.0], [3.0, 3.0], [2.0, 4.0], [5.0, 5.0]])  # K=5, P=2
+    assert combine(d, "mean").tolist() == [3.0, 3.0]
+    assert combine(d, "worst-quarter").tolist() == [1.5, 1.5]  # the 2 lowest of 5
+
+
+def test_validation_rows_and_best_json(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    args = [
+        "evolve",
+        "nnsin",
+        "--pop",
+        "6",
+        "--gens",
+        "7",
+        "--seed",
+        "2",
+        "--randomize",
+        "--randomize-samples",
+        "2",
+        "--validate-every",
+        "3",
+        "--out",
+        str(out),
+        *TOY,
+    ]
+    assert main(args) == 0
+    lines = (out / "history.csv").read_text().splitlines()
+    assert lines[0].endswith(",validation")
+    measured = [i for i, line in enumerate(lines[1:]) if not line.endswith(",")]
+    assert measured == [0, 3, 6]  # every 3 generations and the last
+    best = json.loads((out / "best.json").read_text())
+    assert best["ga"]["randomize"] == Randomize(samples=2, validate_every=3).to_json()
+    values = [float(line.rsplit(",", 1)[1]) for line in lines[1:] if not line.endswith(",")]
+    assert best["fitness"] == max(values)
+    # best.json's fitness is its mean over the validation robots, recomputed independently
+    from bstool.controllers import load_controller
+
+    ctrl = load_controller(out / "best.json")
+    robots = validation_robots(Robot(), Randomize(validation_samples=64), 2)
+    seq = ctrl.states(30)
+    assert np.mean(ToyEvaluator()([seq] * 64, robot=robots)) == pytest.approx(best["fitness"])
+    assert "robot" not in best  # no --robot: nothing recorded, the hash unchanged
+
+
+def test_resume_after_an_interruption_is_identical(tmp_path: Path) -> None:
+    common = dict(
+        pop=6,
+        gens=6,
+        transitions=6,
+        seed=9,
+        fitness="toy",
+        randomize=True,
+        randomize_samples=3,
+        validate_every=2,
+    )
+    driver.evolve("ca2ddiff", out=tmp_path / "whole", coevol_gens=2, **common)  # type: ignore[arg-type]
+
+    def stop(g: driver.Generation) -> None:
+        if g.step == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(driver.EvolveInterrupted):
+        driver.evolve("ca2ddiff", out=tmp_path / "cut", coevol_gens=2, on_generation=stop, **common)  # type: ignore[arg-type]
+    driver.resume(tmp_path / "cut")
+    for name in ("best.json", "history.csv"):
+        assert (tmp_path / "cut" / name).read_text() == (tmp_path / "whole" / name).read_text()
+
+
+@pytest.mark.parametrize(
+    "mode", [{"robust": "mean"}, {"coevolve_faults": True}, {"randomize_score": "worst-quarter"}]
+)
+def test_with_the_other_scoring_modes(mode: dict[str, Any], tmp_path: Path) -> None:
+    result = driver.evolve(
+        "ca1d",
+        pop=4,
+        gens=3,
+        transitions=5,
+        seed=1,
+        fitness="toy",
+        randomize=True,
+        randomize_samples=2,
+        out=tmp_path / "r",
+        **mode,
+    )
+    assert result.completed and result.fitness > 0
+    rows = (tmp_path / "r" / "history.csv").read_text().splitlines()
+    assert rows[0].endswith("validation") and rows[1].split(",")[-1] != ""
+
+
+def test_a_robot_file_is_recorded_and_its_box_used(tmp_path: Path) -> None:
+    path = tmp_path / "robot.toml"
+    path.write_text("friction = 0.6\n[uncertain]\nfriction = { scale = [0.5, 0.6] }\n")
+    out = tmp_path / "run"
+    assert (
+        main(
+            [
+                "evolve",
+                "ca1d",
+                "--pop",
+                "4",
+                "--gens",
+                "2",
+                "--robot",
+                str(path),
+                "--randomize",
+                "--out",
+                str(out),
+                *TOY,
+            ]
+        )
+        == 0
+    )
+    best = json.loads((out / "best.json").read_text())
+    assert best["robot"]["friction"] == 0.6
+    assert best["robot"]["uncertain"] == {"friction": {"scale": [0.5, 0.6]}}
+    from bstool.evolve.checkpoint import load_checkpoint
+
+    state, _extra = load_checkpoint(out)
+    assert state.robot is not None and state.robot.spec.friction == 0.6
+    drawn = training_robots(state.robot, Randomize(), state.params.seed, 0)
+    assert all(0.3 <= r.friction <= 0.36 for r in drawn)
+
+
+def test_option_mistakes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "run"
+    assert main(["evolve", "ca1d", "--randomize-samples", "3", "--out", str(out), *TOY]) == 2
+    assert "only applies with --randomize" in capsys.readouterr().err
+    assert (
+        main(
+            ["evolve", "ca1d", "--pop", "4", "--gens", "1", "--randomize", "--out", str(out), *TOY]
+        )
+        == 0
+    )
+    assert main(["evolve", "--resume", str(out), "--randomize-samples", "8", "-q"]) == 2
+    assert "a resumed run keeps its settings" in capsys.readouterr().err
+    plain = tmp_path / "plain"
+    assert main(["evolve", "ca1d", "--pop", "4", "--gens", "1", "--out", str(plain), *TOY]) == 0
+    assert main(["evolve", "--resume", str(plain), "--randomize", "-q"]) == 2
+    assert "started without --randomize" in capsys.readouterr().err
+
+
+def test_a_cluster_gives_the_same_run(tmp_path: Path) -> None:
+    distributed = pytest.importorskip("dask.distributed")
+    args = dict(
+        pop=4, gens=3, transitions=5, seed=4, fitness="toy", randomize=True, randomize_samples=2
+    )
+    driver.evolve("nnsig", out=tmp_path / "local", **args)  # type: ignore[arg-type]
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+        ) as c,
+        distributed.Client(c) as client,
+    ):
+        driver.evolve("nnsig", out=tmp_path / "dask", cluster=client, **args)  # type: ignore[arg-type]
+    for name in ("best.json", "history.csv"):
+        assert (tmp_path / "local" / name).read_text() == (tmp_path / "dask" / name).read_text()
+
+
+@pytest.mark.slow
+def test_physics_and_stamp_timed_on_random_robots(tmp_path: Path) -> None:
+    """A tiny physics run, plain and stamp-timed (schedule model of 1 build), on 2 workers:
+    a validated fitness that replays on the validation robots."""
+    from hil_mock.schedule_model import schedule_model
+
+    for timed in (False, True):
+        sched = schedule_model("nnsin", builds=1) if timed else None
+        result = driver.evolve(
+            "nnsin",
+            pop=3,
+            gens=2,
+            transitions=4,
+            seed=3,
+            randomize=True,
+            randomize_samples=2,
+            validation_samples=3,
+            out=tmp_path / f"t{timed}",
+            workers=2,
+            stamp_timed=timed,
+            schedule_model=sched,
+            schedule_builds=1 if timed else None,
+        )
+        assert result.completed and result.fitness > 0
+        ctrl = result.controller
+        assert ctrl is not None
+        from bstool.evolve.fitness import PhysicsFitness, StampTimedFitness
+
+        robots = validation_robots(Robot(), Randomize(validation_samples=3), 3)
+        factory: Any = StampTimedFitness(sched) if timed else PhysicsFitness()
+        ev = factory.build()
+        again = np.mean(ev([ctrl.states(4)] * 3, robot=robots))
+        ev.close()
+        assert again == pytest.approx(result.fitness, abs=1e-12)
+        assert dataclasses.replace(RobotSpec()) == RobotSpec()
