@@ -108,7 +108,7 @@ multi-failures = 1
 extrapolate = { transitions = 4 }
 paths = true
 initial-states = { k = [1, 3], samples = 2 }
-sensitivity = true
+sensitivity = { points = 2, samples = 2 }
 """
 
 
@@ -148,7 +148,7 @@ def test_the_report(folder: Path, cli: Any) -> None:
                 assert 0 <= row["test"]["p"] <= 1
     figures = {n for n in report["figures"].values() if n}
     assert {"fitness.png", "faults.png", "paths.png", "extrapolation.png", "initial-states.png",
-            "gait-nnsig.png", "state-changes.png"} <= figures  # fmt: skip
+            "gait-nnsig.png", "state-changes.png", "sensitivity.png"} <= figures  # fmt: skip
     assert all((folder / "report" / n).is_file() for n in figures)
     html = (folder / "report" / "index.html").read_text()
     assert "bstool evolve nnsig --pop 4 --gens 2 --fitness toy --transitions 2 --seed 1" in html

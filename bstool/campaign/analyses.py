@@ -65,6 +65,8 @@ def jobs(plan: cp.CampaignPlan, transitions: int) -> list[Job]:
     if a.extrapolate is not None:
         every = a.reinit_every or transitions
         out.append(Job("extrapolate", {"transitions": a.extrapolate, "reinit_every": every}))
+    if a.sensitivity is not None:
+        out.append(Job("sensitivity", {"transitions": transitions, **vars(a.sensitivity)}))
     if a.initial_states is not None:
         init = a.initial_states
         out.append(
@@ -132,16 +134,32 @@ def simulations(job: Job, controller: Controller) -> int:
         return 2
     if job.name == "initial-states":
         return 1 + len(p["k"]) * p["samples"]
+    if job.name == "sensitivity":
+        return _design(controller, p).count
     return 1
+
+
+def _design(controller: Controller, p: dict[str, Any]) -> Any:
+    from bstool.experiments import sensitivity
+
+    return sensitivity.design(
+        robot_of(controller), points=p["points"], samples=p["samples"], seed=p["seed"]
+    )
 
 
 Run = Callable[[Sequence[np.ndarray]], list[Any]]
 
 
-def compute(job: Job, c: Controller, run: Run) -> dict[str, Any]:
-    """The result of ``job`` (JSON-ready; distances in metres, M_D in percent)."""
+def compute(job: Job, c: Controller, run: Run, on_robots: Any = None) -> dict[str, Any]:
+    """The result of ``job`` (JSON-ready; distances in metres, M_D in percent).
+    ``on_robots(sequences, robots) -> distances`` plays sequences on other robots (the
+    sensitivity analysis)."""
     p = job.params
     T = int(p["transitions"])
+    if job.name == "sensitivity":
+        from bstool.experiments import sensitivity
+
+        return sensitivity.measure(job.name, c.states(T), _design(c, p), on_robots).to_json()
     evaluate = mobility.distances_of(run)
     if job.name == "base":
         (res,) = run([c.states(T)])
@@ -165,6 +183,46 @@ def compute(job: Job, c: Controller, run: Run) -> dict[str, Any]:
     if job.name == "initial-states":
         return {"baseline_distance": baseline, "k": _nudged(c, evaluate, T, p, baseline)}
     raise InputError(f"unknown analysis {job.name!r}")  # pragma: no cover
+
+
+class _OnRobots:
+    """An evolve evaluator as ``(sequences, robots) -> distances`` (``bstool sensitivity``'s
+    evaluation: plain or stamp-timed physics on each robot), in chunks for the progress."""
+
+    def __init__(self, evaluator: Any, chunk: int, advance: Callable[[int], None]) -> None:
+        self.evaluator, self.chunk, self.advance = evaluator, chunk, advance
+
+    def __call__(self, seqs: list[np.ndarray], robots: list[Any]) -> list[float]:
+        out: list[float] = []
+        for i in range(0, len(seqs), self.chunk):
+            part = self.evaluator(seqs[i : i + self.chunk], robot=robots[i : i + self.chunk])
+            out += [float(d) for d in part]
+            self.advance(len(part))
+        return out
+
+    def close(self) -> None:
+        close = getattr(self.evaluator, "close", None)
+        if close is not None:
+            close()
+
+
+def _on_robots(
+    c: Controller,
+    spec: RobotSpec,
+    schedule: Any,
+    workers: int | None,
+    advance: Callable[[int], None],
+) -> _OnRobots:
+    from bstool.cpus import usable_cpus
+    from bstool.evolve.fitness import PhysicsFitness, StampTimedFitness
+
+    threads = workers or usable_cpus()
+    factory: Any = (
+        PhysicsFitness(c.legs, c.modules, threads, spec)
+        if schedule is None
+        else StampTimedFitness(schedule, c.legs, c.modules, threads, spec)
+    )
+    return _OnRobots(factory.build(), max(1, 2 * threads), advance)
 
 
 def _multi(
@@ -266,7 +324,14 @@ def analyse(
             if spec not in evaluators:  # one MuJoCo model per robot, not per analysis
                 evaluators[spec] = BatchEvaluator(spec, workers=workers)
             run = batch_runner(evaluators[spec], schedules.get(name), say.advance)
-            result = compute(job, c, run)
+            on_robots = None
+            if job.name == "sensitivity":
+                on_robots = _on_robots(c, spec, schedules.get(name), workers, say.advance)
+            try:
+                result = compute(job, c, run, on_robots)
+            finally:
+                if on_robots is not None:
+                    on_robots.close()
             record = {
                 "format": FORMAT,
                 "analysis": job.name,

@@ -193,6 +193,11 @@ def kept(k: int) -> Metric:
     return lambda r: lookup(r, "initial-states", "k", str(k), "mean_kept")
 
 
+def uncertain_kept(r: RunData) -> float | None:
+    """``bstool sensitivity``'s joint sample: mean distance over the nominal one."""
+    return lookup(r, "sensitivity", "kept")
+
+
 def clustered(r: RunData) -> float | None:
     return gait.clustered_fraction(r.states)
 

@@ -72,6 +72,16 @@ class InitialStates:
 
 
 @dataclass(frozen=True)
+class Sensitivity:
+    """``bstool sensitivity`` on each run: every uncertain parameter alone at ``points`` values,
+    and ``samples`` robots drawn from all ranges at once (seeded)."""
+
+    points: int = 5
+    samples: int = 32
+    seed: int = 0
+
+
+@dataclass(frozen=True)
 class Analyses:
     faults: bool = False  # Fig. 17: every single module failed
     multi_failures: int = 0  # K = 1..5 failed at once, this many random sets per K (0: off)
@@ -79,7 +89,7 @@ class Analyses:
     reinit_every: int | None = None  # the remedy's period (None: the runs' MAX_TRANS)
     paths: bool = False  # Fig. 18
     initial_states: InitialStates | None = None  # §4
-    sensitivity: Any = None  # reserved for `bstool sensitivity` (recorded, not run yet)
+    sensitivity: Sensitivity | None = None  # physics uncertainty (docs/robot.md)
 
     def to_json(self) -> dict[str, Any]:
         init = self.initial_states
@@ -92,7 +102,7 @@ class Analyses:
             "initial-states": None
             if init is None
             else {"k": list(init.k), "samples": init.samples},
-            "sensitivity": self.sensitivity,
+            "sensitivity": None if self.sensitivity is None else vars(self.sensitivity),
         }
 
 
@@ -279,14 +289,7 @@ def _analyses(r: _Reader, table: dict[str, Any]) -> Analyses:
     multi = r.integer(f"{where} multi-failures", table.get("multi-failures", 0), 0)
     extrapolate, reinit = _extrapolate(r, table.get("extrapolate", False))
     initial = _initial_states(r, table.get("initial-states", False))
-    sensitivity = table.get("sensitivity")
-    if sensitivity is not None and not isinstance(sensitivity, bool | dict):
-        raise r.fail(
-            f"{where} sensitivity",
-            f"must be true, false or a table, got {_kind(sensitivity)} ({sensitivity!r})",
-        )
-    if sensitivity is False:
-        sensitivity = None
+    sensitivity = _sensitivity(r, table.get("sensitivity", False))
     return Analyses(faults, multi, extrapolate, reinit, paths, initial, sensitivity)
 
 
@@ -319,6 +322,23 @@ def _initial_states(r: _Reader, value: Any) -> InitialStates | None:
     ks = [r.integer(f"{where} k", k, 1) for k in r.unique_list(f"{where} k", ks)]
     samples = r.integer(f"{where} samples", table.get("samples", DEFAULT_INITIAL_SAMPLES), 1)
     return InitialStates(tuple(ks), samples)
+
+
+def _sensitivity(r: _Reader, value: Any) -> Sensitivity | None:
+    where = "[analyses] sensitivity"
+    if isinstance(value, bool):
+        return Sensitivity() if value else None
+    table = r.table(where, value)
+    keys = ("points", "samples", "seed")
+    for key in table:
+        if key not in keys:
+            raise r.unknown(where, key, keys)
+    d = Sensitivity()
+    return Sensitivity(
+        r.integer(f"{where} points", table.get("points", d.points), 2),
+        r.integer(f"{where} samples", table.get("samples", d.samples), 1),
+        r.integer(f"{where} seed", table.get("seed", d.seed), 0),
+    )
 
 
 def read_text(path: str | os.PathLike[str]) -> str:

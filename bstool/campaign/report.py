@@ -93,6 +93,7 @@ def _metrics(d: cl.RunData) -> dict[str, float | None]:
         "max_dev": cl.max_deviation(d),
         "sway": cl.sway(d),
         "clustered": cl.clustered(d),
+        "uncertain_kept": cl.uncertain_kept(d),
     }
     for k in sorted(cl.lookup(d, "initial-states", "k") or {}, key=int):
         out[f"kept_{k}"] = cl.kept(int(k))(d)
@@ -114,6 +115,7 @@ COLUMNS = (
     ("max_dev", "max dev (cm)", 100, 1),
     ("sway", "sway (cm)", 100, 2),
     ("clustered", "|ΔS| ≤ 1 (%)", 100, 0),
+    ("uncertain_kept", "kept on uncertain robots (%)", 100, 0),
 )
 
 
@@ -213,7 +215,6 @@ def build(
             "campaign_wall": _hours(record.wall_s),
             "campaign_wall_s": record.wall_s,
             "rules": RULES,
-            "notes": notes(plan),
             "confidence": stats.CONFIDENCE,
             "resamples": stats.RESAMPLES,
         }
@@ -295,17 +296,6 @@ def markdown(context: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def notes(plan: cp.CampaignPlan) -> list[str]:
-    """What the plan asks for that the report does not show (yet)."""
-    out = []
-    if plan.analyses.sensitivity is not None:
-        out.append(
-            "[analyses] sensitivity is recorded but not run: it is reserved for `bstool "
-            "sensitivity` (physics uncertainty), which the campaign will run once it exists."
-        )
-    return out
-
-
 RULES = (
     f"Each interval is the mean over the seeds with its {stats.CONFIDENCE:.0%} bootstrap "
     f"percentile interval ({stats.RESAMPLES} resamples, seed {stats.SEED}).",
@@ -332,6 +322,7 @@ FIGURES = (
     "paths",
     "extrapolation",
     "initial_states",
+    "sensitivity",
     "gait_nnsin",
     "gait_nnsig",
     "state_changes",
@@ -370,6 +361,16 @@ def _figures(
     if a.extrapolate is not None:
         figures.extrapolation(tmp / "extrapolation.png", runs, transitions)
         shown["extrapolation"] = "extrapolation.png"
+    if a.sensitivity is not None:
+        figures.per_run_values(
+            tmp / "sensitivity.png",
+            runs,
+            cl.uncertain_kept,
+            "joint sample's mean distance (% of nominal)",
+            "Physics uncertainty: distance kept on random robots",
+            100.0,
+        )
+        shown["sensitivity"] = "sensitivity.png"
     if a.initial_states is not None:
         figures.initial_states(tmp / "initial-states.png", runs)
         shown["initial_states"] = "initial-states.png"
