@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from bstool.campaign.analyses import MULTI_K
 from bstool.campaign.claims import RunData, lead_mobility, lookup, other_mobility
 from bstool.experiments import gait
 from bstool.experiments.plots import new_figure, save_figure
@@ -166,6 +167,7 @@ def multi_failures(path: Path, runs: Runs) -> None:
             _band(ax, np.array([int(k) for k in ks]), curves, f"C{i}", model)
     ax.axhline(100, color="0.3", linewidth=0.8)
     ax.axhline(80, color="0.6", linewidth=0.8, linestyle="--")
+    ax.set_xticks(list(MULTI_K))
     ax.set_xlabel("failed modules K (random sets)")
     ax.set_ylabel("median M_D (%)")
     ax.set_title("Mobility under multiple failures (mean over seeds, range)")
@@ -229,6 +231,7 @@ def initial_states(path: Path, runs: Runs) -> None:
     """§4: distance kept when k initial states change by ±1 (mean over seeds, range)."""
     fig = new_figure(6.5, 4.2)
     ax = fig.add_subplot()
+    shown_k: set[int] = set()
     for i, model in enumerate(runs):
         curves, ks = [], None
         for r in runs[model]:
@@ -242,8 +245,11 @@ def initial_states(path: Path, runs: Runs) -> None:
                 )
             )
         if ks:
+            shown_k.update(int(k) for k in ks)
             _band(ax, np.array([int(k) for k in ks]), curves, f"C{i}", model, "-o")
     ax.axhline(100, color="0.3", linewidth=0.8)
+    if shown_k:
+        ax.set_xticks(sorted(shown_k))  # k is a count: integer ticks only
     ax.set_xlabel("initial states changed by ±1 (k of 30)")
     ax.set_ylabel("distance kept (% of d_30)")
     ax.set_title("Sensitivity to the initial states (§4)")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -114,7 +114,7 @@ COLUMNS = (
     ("reinit", "re-init gain", 1, 2),
     ("max_dev", "max dev (cm)", 100, 1),
     ("sway", "sway (cm)", 100, 2),
-    ("clustered", "|ΔS| ≤ 1 (%)", 100, 0),
+    ("clustered", "ΔS within ±1 (%)", 100, 0),
     ("uncertain_kept", "kept on uncertain robots (%)", 100, 0),
 )
 
@@ -159,8 +159,10 @@ def build(
     workers: int | None = None,
     schedule_for: an.ScheduleFor | None = None,
     progress: an.Progress | None = None,
+    analysed: Callable[[], None] | None = None,
 ) -> Path:
-    """Analyse the finished runs (cached) and write the report; returns its index.html."""
+    """Analyse the finished runs (cached) and write the report; returns its index.html.
+    ``analysed()`` is called between the two (the campaign saves its record there)."""
     base = Path(folder)
     target = outputs.check_dir(
         base / REPORT if out is None else out,
@@ -181,6 +183,8 @@ def build(
     )
     if progress is not None:
         progress.describe("report")
+    if analysed is not None:
+        analysed()
     data = {r.name: _run_data(r, results[r.name]) for r in done}
     by_model = {m: [data[r.name] for r in done if r.spec.model == m] for m in plan.models}
     names = {job.name for r in done for job in an.jobs(plan, data[r.name].transitions)}

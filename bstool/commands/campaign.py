@@ -131,16 +131,16 @@ def command(
         record.sessions.append(session)
         rec.save(folder, record)
         start = time.monotonic()
+
+        def checkpoint() -> None:  # after each run: a killed session keeps its time
+            session.ended = rec.now()
+            session.wall_s = time.monotonic() - start
+            rec.save(folder, record)
+
         try:
-
-            def checkpoint() -> None:  # after each run: a killed session keeps its time
-                session.ended = rec.now()
-                session.wall_s = time.monotonic() - start
-                rec.save(folder, record)
-
             _evolve(folder, runs, record, settings, workers, cluster, quiet, say, checkpoint)
             with progress.bar("analyses", None, quiet=quiet) as bar:
-                index = _report(folder, plan, settings, workers, quiet, bar, say)
+                index = _report(folder, plan, settings, workers, quiet, bar, say, checkpoint)
             session.outcome = "finished"
         except KeyboardInterrupt as exc:
             session.outcome = "interrupted"
@@ -254,6 +254,7 @@ def _report(
     quiet: bool,
     bar: Any,
     say: Callable[[str], None],
+    checkpoint: Callable[[], None],
 ) -> Path:
     from bstool.campaign import analyses
     from bstool.campaign import report as creport
@@ -277,4 +278,5 @@ def _report(
         workers=workers,
         schedule_for=analysis_schedule,
         progress=analyses.Progress(bar.total, bar, describe),
+        analysed=checkpoint,  # the report shows the wall time up to its writing
     )
