@@ -117,6 +117,8 @@ def test_seed_major_order() -> None:
         ('format = "bstool.campaign/1"\nmodels = ["nnsin"]\nseeds = [-1]\n',
          "seeds: must be at least 0", None),
         ('format = "bstool.campaign/1"\nmodels = []\nseeds = [1]\n', "non-empty list", None),
+        ('format = "bstool.campaign/1"\nmodels = [["nnsin"]]\nseeds = [1]\n',
+         "list of single values", None),
         ('format = "bstool.campaign/1"\nmodels = ["nnsin"]\n', "missing seeds", None),
         ("format = \n", "not a valid TOML file", None),
     ],

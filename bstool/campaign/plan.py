@@ -204,6 +204,8 @@ class _Reader:
             raise self.fail(where, f"must be a non-empty list, got {value!r}")
         seen: set[Any] = set()
         for item in value:
+            if isinstance(item, list | dict):
+                raise self.fail(where, f"must be a list of single values, got {value!r}")
             if item in seen and not isinstance(item, bool):
                 raise self.fail(where, f"{item!r} is listed twice", "list each once")
             seen.add(item)

@@ -202,7 +202,8 @@ def build(
             "title": "bstool campaign report: the paper's claims over the seeds",
             "version": __version__,
             "made": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-            "folder": str(base),
+            "folder": str(base.resolve()),
+            "adopted": sum(r["adopted_steps"] > 0 for r in run_rows),
             "plan": plan.to_json(),
             "plan_text": plan_text,
             "fitness_kind": ", ".join(sorted(kinds)),
@@ -296,7 +297,15 @@ def markdown(context: Mapping[str, Any]) -> str:
             v = metrics.get(key)
             cells.append("—" if v is None else f"{v * scale:.{digits}f}")
         lines.append(_md_row([r["name"], r["generations"], *cells, r["wall"]]))
-    lines += ["", f"Campaign wall time: {context['campaign_wall']}.", ""]
+    adopted = (
+        (
+            f", not counting the generations of {context['adopted']} run(s) made before the "
+            "campaign adopted their folders"
+        )
+        if context["adopted"]
+        else ""
+    )
+    lines += ["", f"Campaign wall time: {context['campaign_wall']}{adopted}.", ""]
     return "\n".join(lines)
 
 
