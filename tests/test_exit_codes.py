@@ -105,12 +105,13 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         ).returncode
         == 0
     )
-    plan = d / "plan.toml"
+    (d / "plans").mkdir()
+    plan = d / "plans" / "plan.toml"
     plan.write_text(
         'format = "bstool.campaign/1"\nmodels = ["nnsig"]\nseeds = [1]\n'
         '[evolve]\npop = 4\ngens = 1\nfitness = "toy"\ntransitions = 2\n'
     )
-    bad_plan = d / "bad-plan.toml"
+    bad_plan = d / "plans" / "bad-plan.toml"
     bad_plan.write_text(plan.read_text().replace("pop = 4", "popp = 4"))
     return {
         "dir": d,

@@ -71,10 +71,8 @@ def _run_row(run: runner.Run, data: cl.RunData | None, record: rec.Record) -> di
         "wall_s": r.wall_s,
         "adopted_steps": r.adopted_steps,
         "campaign_steps": r.steps,
+        "metrics": None if data is None else _metrics(data),
     }
-    if data is not None:
-        metrics = _metrics(data)
-        row["metrics"] = metrics
     return row
 
 
@@ -122,11 +120,11 @@ COLUMNS = (
 def _model_rows(rows: Sequence[dict[str, Any]], models: Sequence[str]) -> list[dict[str, Any]]:
     out = []
     keys = [c[0] for c in COLUMNS] + sorted(
-        {k for r in rows for k in r.get("metrics", {}) if k.startswith("kept_")},
+        {k for r in rows for k in (r["metrics"] or {}) if k.startswith("kept_")},
         key=lambda k: int(k.split("_")[1]),
     )
     for model in models:
-        mine = [r["metrics"] for r in rows if r["model"] == model and "metrics" in r]
+        mine = [r["metrics"] for r in rows if r["model"] == model and r["metrics"]]
         cells = {}
         for key in keys:
             iv = stats.mean_interval([m.get(key) for m in mine])

@@ -286,10 +286,13 @@ def run_folders(folder: Path) -> Path:
 
 
 def is_campaign(folder: str | os.PathLike[str]) -> bool:
-    """A folder ``bstool campaign`` made: its plan.toml declares the campaign format."""
-    path = Path(folder) / cp.PLAN_FILE
+    """A folder ``bstool campaign`` made (or adopted): its plan.toml declares the campaign
+    format and it has run folders or a record (a folder merely holding a plan is not one)."""
+    d = Path(folder)
+    if not ((d / RUNS).is_dir() or (d / rec.RECORD_FILE).is_file()):
+        return False
     try:
-        text = cp.read_text(path)
+        text = cp.read_text(d / cp.PLAN_FILE)
     except InputError:
         return False
     try:
