@@ -18,6 +18,7 @@ validation set (docs/evolution.md "Randomized physics").
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -46,6 +47,7 @@ class Randomize:
     score: str = "mean"
     validate_every: int = DEFAULT_VALIDATE_EVERY
     validation_samples: int = DEFAULT_VALIDATION_SAMPLES
+    train_timestep: float | None = None  # the training draws' physics step (None: the robot's)
 
     def __post_init__(self) -> None:
         if self.score not in SCORES:
@@ -58,14 +60,30 @@ class Randomize:
                 flag = {"samples": "--randomize-samples", "validate_every": "--validate-every",
                         "validation_samples": "--validation-samples"}[name]  # fmt: skip
                 raise InputError(f"{flag} must be an integer of at least {low}, got {value!r}")
+        step = self.train_timestep
+        if step is not None and (
+            isinstance(step, bool) or not isinstance(step, int | float) or not 0 < step <= 0.01
+        ):
+            raise InputError(
+                f"--train-timestep must be a step in seconds in (0, 0.01], got {step!r}"
+            )
 
     def to_json(self) -> dict[str, Any]:
-        return {
+        out: dict[str, Any] = {
             "samples": self.samples,
             "score": self.score,
             "validate_every": self.validate_every,
             "validation_samples": self.validation_samples,
         }
+        if self.train_timestep is not None:
+            out["train_timestep"] = self.train_timestep
+        return out
+
+    def training_spec(self, nominal: RobotSpec) -> RobotSpec:
+        """The nominal robot as training runs it (at ``train_timestep`` if set)."""
+        if self.train_timestep is None or self.train_timestep == nominal.timestep:
+            return nominal
+        return dataclasses.replace(nominal, timestep=float(self.train_timestep))
 
     @classmethod
     def from_json(cls, obj: Any) -> Randomize:
@@ -75,8 +93,12 @@ class Randomize:
 
 
 def training_robots(robot: Robot, settings: Randomize, seed: int, step: int) -> list[RobotSpec]:
-    """The K robots every candidate of ``step`` meets."""
-    return robot.box.samples(robot.spec, settings.samples, seed=[seed, RANDOMIZE_STREAM, step])
+    """The K robots every candidate of ``step`` meets (at the training timestep)."""
+    drawn = robot.box.samples(robot.spec, settings.samples, seed=[seed, RANDOMIZE_STREAM, step])
+    train = settings.training_spec(robot.spec)
+    if train is robot.spec:
+        return drawn
+    return [dataclasses.replace(r, timestep=train.timestep) for r in drawn]
 
 
 def validation_robots(robot: Robot, settings: Randomize, seed: int) -> list[RobotSpec]:
