@@ -130,7 +130,8 @@ def test_validation_rows_and_best_json(tmp_path: Path) -> None:
     measured = [i for i, line in enumerate(lines[1:]) if not line.endswith(",")]
     assert measured == [0, 3, 6]  # every 3 generations and the last
     best = json.loads((out / "best.json").read_text())
-    assert best["ga"]["randomize"] == Randomize(samples=2, validate_every=3).to_json()
+    want = Randomize(samples=2, validate_every=3, train_timestep=0.003).to_json()
+    assert best["ga"]["randomize"] == want
     values = [float(line.rsplit(",", 1)[1]) for line in lines[1:] if not line.endswith(",")]
     assert best["fitness"] == max(values)
     # best.json's fitness is its mean over the validation robots, recomputed independently

@@ -219,7 +219,7 @@ def randomize_settings(
     train_timestep: Any = None,
 ) -> dict[str, Any]:
     """What a run saves for ``--randomize`` and its options (nothing without it)."""
-    from bstool.evolve.randomize import Randomize
+    from bstool.evolve.randomize import DEFAULT_TRAIN_TIMESTEP, Randomize
 
     given = {
         "randomize-samples": samples,
@@ -240,7 +240,7 @@ def randomize_settings(
         validate_every=d.validate_every if validate_every is None else validate_every,
         validation_samples=d.validation_samples if validation_samples is None
         else validation_samples,
-        train_timestep=d.train_timestep if train_timestep is None else train_timestep,
+        train_timestep=DEFAULT_TRAIN_TIMESTEP if train_timestep is None else train_timestep,
     )  # fmt: skip
     return {"randomize": settings.to_json()}
 
