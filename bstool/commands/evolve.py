@@ -150,6 +150,10 @@ _D = opt.default
 @click.option("--validation-samples", type=click.IntRange(min=1),
               help="--randomize: validation robots, seeded apart from the training draws "
               "[default: 64]")  # fmt: skip
+@click.option("--train-timestep", type=click.FloatRange(0, 0.01, min_open=True), metavar="S",
+              help="--randomize: the physics step of the training draws (validation and best.json "
+              "stay at the robot's timestep; docs/robot.md 'Timestep fidelity'; the robot's "
+              "step or finer: train at the robot's)  [default: 0.003]")  # fmt: skip
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @click.pass_context
 def command(
@@ -212,6 +216,7 @@ _RANDOMIZE_OPTIONS = (
     "randomize_score",
     "validate_every",
     "validation_samples",
+    "train_timestep",
 )
 
 

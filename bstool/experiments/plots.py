@@ -118,7 +118,8 @@ def plot_fitness(
 ) -> None:
     """Maximum (solid) and mean (dashed) fitness against generation, several runs overlaid
     (paper Figs 7, 9–11, 15–16). Rows are ``HistoryRow``s (generation, best, mean,
-    population); co-evolution runs draw one pair of curves per population. The format comes
+    population); co-evolution runs draw one pair of curves per population; a randomized run's
+    validation means are drawn as open circles. The format comes
     from the file's suffix (.png, .svg, .pdf)."""
     fig = new_figure(8.0, 5.0)
     ax = fig.add_subplot()
@@ -141,6 +142,11 @@ def plot_fitness(
                         label=f"{label} max")  # fmt: skip
             target.plot(gens, mean, color=colour, ls="-." if harm is target else "--",
                         label=f"{label} mean")  # fmt: skip
+            checked = [(g, v * scale) for g, r in zip(gens, mine, strict=True)
+                       if (v := getattr(r, "validation", None)) is not None]  # fmt: skip
+            if checked:  # --randomize: the best's mean over the validation robots
+                target.plot(*zip(*checked, strict=True), color=colour, ls="none", marker="o",
+                            ms=5, mfc="white", label=f"{label} validation")  # fmt: skip
             curves += 1
     if harm is not None:
         harm.set_ylabel("parasites: fraction of distance lost")
