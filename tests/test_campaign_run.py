@@ -4,6 +4,7 @@ folder of another plan or a run folder with other settings. Toy fitness, tiny bu
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -101,6 +102,11 @@ def test_ctrl_c_then_again_equals_uninterrupted(
     assert "Interrupted after 2 of 3 generations" in done.err
     assert f"bstool campaign {plan} -o {tmp_path / 'B'}" in done.err
     assert not (tmp_path / "B" / "runs" / "nnsig-s2").exists()
+    partial = cli("report", str(tmp_path / "B"), "-q")  # a report of what is finished
+    assert partial.code == 0, partial.err
+    shown = json.loads((tmp_path / "B" / "report" / "report.json").read_text())
+    assert (shown["finished"], shown["total"]) == (1, 4)
+    assert shown["unfinished"] == ["ca1d-s1", "nnsig-s2", "ca1d-s2"]
     monkeypatch.setattr(fitness.ToyEvaluator, "__call__", real)
     calls["n"] = 0
     again = campaign(cli, plan, tmp_path / "B")
