@@ -53,7 +53,9 @@ def _hours(seconds: float) -> str:
 
 
 def _run_row(run: runner.Run, data: cl.RunData | None, record: rec.Record) -> dict[str, Any]:
-    r = record.runs.get(run.name, rec.RunRecord())
+    r = record.runs.get(run.name)
+    if r is None:  # never seen by bstool campaign (bstool report on a folder it adopts later)
+        r = rec.RunRecord(adopted_steps=run.steps_done)
     if r.adopted_steps and r.steps:
         wall = f"{_hours(r.wall_s)} for {r.steps} generations; {r.adopted_steps} made before"
     elif r.adopted_steps:
