@@ -43,6 +43,19 @@ from bstool.commands.robot_option import robot_option
               help="--stamp-timed: the period the controllers will be compiled with "
               "(default: compile's).")  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace OUT even if it is not an earlier report.")
+@click.option(
+    "--sensitivity",
+    "sensitivity_samples",
+    type=click.IntRange(min=0),
+    default=16,
+    show_default=True,
+    metavar="SAMPLES",
+    help="How far each gait transfers: SAMPLES robots drawn from the uncertain ranges (the "
+    "robot file's, else the default box) and each parameter alone at --sensitivity-points "
+    "values, as `bstool sensitivity` (0: skip).",
+)
+@click.option("--sensitivity-points", type=click.IntRange(min=2), default=3, show_default=True,
+              help="Values per parameter of the sensitivity section's sweep.")  # fmt: skip
 @robot_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar or messages.")
 @click.pass_context
@@ -59,6 +72,8 @@ def command(
     force: bool,
     quiet: bool,
     robot: str | None,
+    sensitivity_samples: int,
+    sensitivity_points: int,
 ) -> None:
     """Compare INPUTS (evolve run directories or controller files): fitness curves, disc paths,
     mobility under single failures, distance beyond MAX_TRANS, spread over leg rotations, and
@@ -84,6 +99,8 @@ def command(
                 "stamp_timed",
                 "period",
                 "robot",
+                "sensitivity_samples",
+                "sensitivity_points",
             )
             if ctx.get_parameter_source(name) is not ParameterSource.DEFAULT
         ]
@@ -137,6 +154,7 @@ def command(
             schedule_for=schedule_for,
             evaluation=evaluation,
             robot=robot,
+            sensitivity=(sensitivity_points, sensitivity_samples) if sensitivity_samples else None,
         )
     click.echo(f"report: {index}")
 
