@@ -68,8 +68,14 @@ def test_the_shipped_plans() -> None:
     a = plan.analyses
     assert (a.faults, a.multi_failures, a.extrapolate, a.paths) == (True, 20, 120, True)
     assert a.initial_states == cp.InitialStates((1, 2, 5, 10), 20)
+    assert a.sensitivity is not None
     small = parse((ROOT / "examples" / "campaign-small.toml").read_text())
     assert len(small.seeds) == 2 and len(small.models) >= 2
+    randomized = parse((ROOT / "examples" / "paper-randomized.toml").read_text())
+    assert randomized.models == plan.models and randomized.seeds == (1, 2)
+    assert randomized.settings("nnsin") == {
+        "pop": 50, "gens": 100, "randomize": True, "randomize-samples": 4,
+    }  # fmt: skip
 
 
 def test_the_paper_plan_is_the_campaigns() -> None:
