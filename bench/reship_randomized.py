@@ -18,6 +18,9 @@ own nominal distance, nominal >= 85 % of the shipped gait's. OUT/summary.json ho
 
 Usage: python bench/reship_randomized.py OUT [--models nnsin,...] [--seeds 1,2,3]
        [--samples 4] [--robots 64] [--workers 2] [--no-nominal] [--measure-only]
+       [--plain] [--pop P] [--gens G] [--ca2ddiff-gens L] [--coevol-gens C] [--no-shipped]
+With --plain and a budget it is the evolution comparison of docs/results.md ("Randomized
+against nominal evolution"): every figure there is plain physics.
 """
 
 from __future__ import annotations
@@ -42,9 +45,24 @@ MODELS = ("nnsin", "nnsig", "ca1d", "ca2dsing", "ca2ddiff")
 FRESH_SEED = 20261204  # the measuring robots: apart from every run's draws
 
 
-def budget(model: str) -> dict[str, Any]:
+def budget(model: str, args: argparse.Namespace) -> dict[str, Any]:
+    """The shipped gait's GA budget, or the one given (--pop, --gens, --coevol-gens)."""
     ga = load_controller(builtin_controller(model)).ga or {}
-    return {k: ga[k] for k in ("pop", "gens", "coevol_gens", "pm")}
+    out = {k: ga[k] for k in ("pop", "gens", "coevol_gens", "pm")}
+    for key in ("pop", "coevol_gens"):
+        if getattr(args, key) is not None:
+            out[key] = getattr(args, key)
+    gens = args.ca2ddiff_gens if model == "ca2ddiff" else args.gens
+    if gens is not None:
+        out["gens"] = gens
+    return out
+
+
+def _timed(model: str, args: argparse.Namespace) -> dict[str, Any]:
+    """evolve's keywords for the physics: stamp-timed on the schedule model, or plain."""
+    if args.plain:
+        return {}
+    return {"stamp_timed": True, "schedule_model": _schedule(model, 0)}
 
 
 def evolve_one(out: Path, model: str, seed: int, kind: str, args: argparse.Namespace) -> Path:
@@ -53,11 +71,10 @@ def evolve_one(out: Path, model: str, seed: int, kind: str, args: argparse.Names
         state = driver.plan_resume(folder, {}).state
         if state.done:
             return folder
-        driver.execute(
-            driver.plan_resume(folder, {}), workers=args.workers, schedule_model=_schedule(model, 0)
-        )
+        more = {k: v for k, v in _timed(model, args).items() if k == "schedule_model"}
+        driver.execute(driver.plan_resume(folder, {}), workers=args.workers, **more)
         return folder
-    b = budget(model)
+    b = budget(model, args)
     gens = b["gens"] if kind == "rand" else b["gens"] * args.samples
     more: dict[str, Any] = {}
     if kind == "rand":
@@ -73,8 +90,7 @@ def evolve_one(out: Path, model: str, seed: int, kind: str, args: argparse.Names
         out=folder,
         force=True,
         workers=args.workers,
-        stamp_timed=True,
-        schedule_model=_schedule(model, 0),
+        **_timed(model, args),
         **more,
     )
     fileio.write_json(folder / "wall.json", {"seconds": time.perf_counter() - start})
@@ -91,13 +107,18 @@ def _schedule(model: str, builds: int) -> Any:
 
 
 def measure(paths: dict[str, Path], model: str, args: argparse.Namespace) -> dict[str, Any]:
-    """Every controller of ``paths`` on the same fresh robots, stamp-timed."""
-    from bstool.evolve.fitness import StampTimedFitness
+    """Every controller of ``paths`` on the same fresh robots (stamp-timed unless --plain)."""
+    from bstool.evolve.fitness import PhysicsFitness, StampTimedFitness
 
     plan = sens.Design(
         Robot(), {}, Robot().box.samples(Robot().spec, args.robots, seed=[FRESH_SEED]), FRESH_SEED
     )
-    ev = StampTimedFitness(_schedule(model, 0), workers=args.workers).build()
+    factory: Any = (
+        PhysicsFitness(workers=args.workers)
+        if args.plain
+        else StampTimedFitness(_schedule(model, 0), workers=args.workers)
+    )
+    ev = factory.build()
     out = {}
     try:
         for name, path in paths.items():
@@ -130,13 +151,19 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-nominal", action="store_true", help="skip nominal evolution")
     ap.add_argument("--measure-only", action="store_true", help="no evolution, measure runs")
+    ap.add_argument("--plain", action="store_true", help="plain physics, not --stamp-timed")
+    ap.add_argument("--pop", type=int, default=None, help="instead of the shipped budget's")
+    ap.add_argument("--gens", type=int, default=None, help="instead of the shipped budget's")
+    ap.add_argument("--ca2ddiff-gens", type=int, default=None, help="ca2ddiff outer loops")
+    ap.add_argument("--coevol-gens", type=int, default=None, help="ca2ddiff co-evolution gens")
+    ap.add_argument("--no-shipped", action="store_true", help="do not measure the shipped gait")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in args.seeds.split(",")]
     kinds = ["rand"] if args.no_nominal else ["rand", "nominal"]
     summary: dict[str, Any] = {}
     for model in args.models.split(","):
-        paths: dict[str, Path] = {"shipped": builtin_controller(model)}
+        paths: dict[str, Path] = {} if args.no_shipped else {"shipped": builtin_controller(model)}
         for seed in seeds:
             for kind in kinds:
                 folder = args.out / f"{model}-{kind}-s{seed}"
@@ -147,9 +174,9 @@ def main() -> None:
         figures = measure(paths, model, args)
         rand = {k: v for k, v in figures.items() if k.startswith("rand")}
         pick = max(rand, key=lambda k: rand[k]["validation"] or 0.0) if rand else None
-        old = figures["shipped"]
+        old = figures.get("shipped")
         verdict = {}
-        if pick is not None:
+        if pick is not None and old is not None:
             new = figures[pick]
             verdict = {
                 "candidate": pick,
@@ -164,7 +191,8 @@ def main() -> None:
             )
         summary[model] = {"runs": figures, "verdict": verdict}
         fileio.write_json(args.out / "summary.json", summary)
-        print(f"\n{model}: stamp-timed, {args.robots} fresh robots of the default box (cm)")
+        how = "plain" if args.plain else "stamp-timed"
+        print(f"\n{model}: {how}, {args.robots} fresh robots of the default box (cm)")
         print(f"  {'run':<14}{'nominal':>9}{'mean':>8}{'p10':>8}{'worst':>8}{'validation':>12}")
         for name, f in figures.items():
             val = "" if f["validation"] is None else f"{f['validation'] * 100:.2f}"
