@@ -15,8 +15,6 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import jinja2
-
 from bstool import fileio, outputs
 from bstool.campaign import analyses as an
 from bstool.campaign import claims as cl
@@ -400,12 +398,9 @@ def _figures(
 
 
 def _render(context: dict[str, Any]) -> str:
-    env = jinja2.Environment(
-        loader=jinja2.PackageLoader("bstool", "data"),
-        autoescape=True,
-        undefined=jinja2.StrictUndefined,
-        keep_trailing_newline=True,
-    )
+    from bstool.experiments.report import template_env
+
+    env = template_env()
     env.filters["cell"] = _fmt
     env.filters["interval"] = lambda iv, scale=1.0, digits=1: (
         "—" if iv is None else _fmt(iv, scale, digits)

@@ -284,11 +284,15 @@ def _by_model(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
-def _render(context: dict[str, Any]) -> str:
-    env = jinja2.Environment(
+def template_env() -> jinja2.Environment:
+    """The Jinja environment of the HTML reports (bstool/data/*.html.j2): escaped, strict."""
+    return jinja2.Environment(
         loader=jinja2.PackageLoader("bstool", "data"),
         autoescape=True,
         undefined=jinja2.StrictUndefined,
         keep_trailing_newline=True,
     )
-    return env.get_template("report.html.j2").render(**context)
+
+
+def _render(context: dict[str, Any]) -> str:
+    return template_env().get_template("report.html.j2").render(**context)
