@@ -66,6 +66,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "How far gaits transfer to robots with other physics (the uncertain ranges).",
     ),
     "report": ("bstool.commands.report", "HTML report comparing evolve runs and controllers."),
+    "campaign": (
+        "bstool.commands.campaign",
+        "Evolve every model and seed of a plan, analyse the runs, report the paper's claims.",
+    ),
 }
 
 

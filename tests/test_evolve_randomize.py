@@ -130,7 +130,8 @@ def test_validation_rows_and_best_json(tmp_path: Path) -> None:
     measured = [i for i, line in enumerate(lines[1:]) if not line.endswith(",")]
     assert measured == [0, 3, 6]  # every 3 generations and the last
     best = json.loads((out / "best.json").read_text())
-    assert best["ga"]["randomize"] == Randomize(samples=2, validate_every=3).to_json()
+    want = Randomize(samples=2, validate_every=3, train_timestep=0.003).to_json()
+    assert best["ga"]["randomize"] == want
     values = [float(line.rsplit(",", 1)[1]) for line in lines[1:] if not line.endswith(",")]
     assert best["fitness"] == max(values)
     # best.json's fitness is its mean over the validation robots, recomputed independently
@@ -292,3 +293,27 @@ def test_physics_and_stamp_timed_on_random_robots(tmp_path: Path) -> None:
         ev.close()
         assert again == pytest.approx(result.fitness, abs=1e-12)
         assert dataclasses.replace(RobotSpec()) == RobotSpec()
+
+
+@pytest.mark.slow
+def test_training_on_a_coarser_step_validates_on_the_robots_own(tmp_path: Path) -> None:
+    """--train-timestep: the training draws run at that step, the validation (best.json's
+    fitness) at the robot's; recorded in the run."""
+    from bstool.evolve.fitness import PhysicsFitness
+
+    result = driver.evolve(
+        "nnsig", pop=3, gens=2, transitions=4, seed=8, randomize=True, randomize_samples=2,
+        validation_samples=2, train_timestep=0.004, out=tmp_path / "r", workers=2,
+    )  # fmt: skip
+    settings = Randomize(samples=2, validation_samples=2, train_timestep=0.004)
+    assert [r.timestep for r in training_robots(Robot(), settings, 8, 0)] == [0.004, 0.004]
+    best = json.loads((tmp_path / "r" / "best.json").read_text())
+    assert best["ga"]["randomize"]["train_timestep"] == 0.004
+    ctrl = result.controller
+    assert ctrl is not None
+    ev = PhysicsFitness().build()
+    robots = validation_robots(Robot(), settings, 8)
+    assert all(r.timestep == 0.002 for r in robots)
+    again = float(np.mean(ev([ctrl.states(4)] * 2, robot=robots)))
+    ev.close()
+    assert again == pytest.approx(result.fitness, abs=1e-12)

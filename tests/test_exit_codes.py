@@ -105,8 +105,18 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         ).returncode
         == 0
     )
+    (d / "plans").mkdir()
+    plan = d / "plans" / "plan.toml"
+    plan.write_text(
+        'format = "bstool.campaign/1"\nmodels = ["nnsig"]\nseeds = [1]\n'
+        '[evolve]\npop = 4\ngens = 1\nfitness = "toy"\ntransitions = 2\n'
+    )
+    bad_plan = d / "plans" / "bad-plan.toml"
+    bad_plan.write_text(plan.read_text().replace("pop = 4", "popp = 4"))
     return {
         "dir": d,
+        "plan": plan,
+        "bad_plan": bad_plan,
         "bad": bad,
         "file": plain,
         "source": source,
@@ -167,6 +177,8 @@ CASES: dict[tuple[str, int], str] = {
     ("sensitivity", 2): "sensitivity {ctrl} --robot {badrobot}",
     ("report", 0): "report {run} -T 2 --extrapolate 3 -o {dir}/report -q",
     ("report", 2): "report {dir} -o {dir}/r2",
+    ("campaign", 0): "campaign {plan} -o {dir}/campaign -q",
+    ("campaign", 2): "campaign {bad_plan} -o {dir}/campaign2",
 }
 
 

@@ -261,3 +261,23 @@ def test_fitness_plot_puts_parasites_on_their_own_axis(tmp_path: Path) -> None:
         plot_fitness(tmp_path / name, {"run": rows})
     assert _png(tmp_path / "fit.png")[0] > 100
     assert (tmp_path / "fit.svg").read_text().lstrip().startswith("<?xml")
+
+
+def test_report_has_the_sensitivity_section(controller_file: Path, tmp_path: Path) -> None:
+    """`bstool report` measures how far each gait transfers, as `bstool sensitivity` does: the
+    same robots for every controller; --sensitivity 0 skips it."""
+    from bstool.experiments.sensitivity import design
+    from bstool.robot.robotfile import Robot
+
+    out = tmp_path / "report"
+    args = ["report", str(controller_file), "-o", str(out), "-T", "2", "--extrapolate", "3", "-q"]
+    assert main([*args, "--sensitivity", "2", "--sensitivity-points", "2"]) == 0
+    data = json.loads((out / "report.json").read_text())
+    sens = data["entries"][0]["sensitivity"]
+    plan = design(Robot(), points=2, samples=2, seed=0)
+    assert len(sens["joint"]) == 2 and set(sens["sweeps"]) == set(plan.sweeps)
+    assert min(sens["joint"]) == sens["worst"] and sens["kept"] == sens["mean"] / sens["nominal"]
+    assert "How far each gait transfers" in (out / "index.html").read_text()
+    assert _png(out / "sensitivity.png")[0] > 100
+    assert main([*args, "--sensitivity", "0", "--force"]) == 0
+    assert json.loads((out / "report.json").read_text())["entries"][0]["sensitivity"] is None

@@ -150,6 +150,10 @@ _D = opt.default
 @click.option("--validation-samples", type=click.IntRange(min=1),
               help="--randomize: validation robots, seeded apart from the training draws "
               "[default: 64]")  # fmt: skip
+@click.option("--train-timestep", type=click.FloatRange(0, 0.01, min_open=True), metavar="S",
+              help="--randomize: the physics step of the training draws (validation and best.json "
+              "stay at the robot's timestep; docs/robot.md 'Timestep fidelity'; the robot's "
+              "step or finer: train at the robot's)  [default: 0.003]")  # fmt: skip
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @click.pass_context
 def command(
@@ -212,6 +216,7 @@ _RANDOMIZE_OPTIONS = (
     "randomize_score",
     "validate_every",
     "validation_samples",
+    "train_timestep",
 )
 
 
@@ -261,27 +266,7 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
         bar.set_postfix(shown, refresh=False)
         bar.update(1)
 
-    schedule = None
-    if plan.stamp_timed:
-        from bstool import timingfile
-        from hil_mock.schedule_model import REPRESENTATIVES, schedule_model
-
-        if not quiet:
-            builds = plan.schedule_builds or REPRESENTATIVES
-            click.echo(
-                f"fitting the schedule model: {builds} builds of random {state.problem.model}"
-                " controllers on the twin (a few seconds each)",
-                err=True,
-            )
-        schedule = schedule_model(
-            state.problem.model,
-            period=plan.period,
-            legs=state.problem.legs,
-            modules=state.problem.modules,
-            timing=None if plan.timing_file is None else timingfile.load(plan.timing_file),
-            builds=plan.schedule_builds,
-            spec=None if state.robot is None else state.robot.spec,
-        )
+    schedule = fit_schedule(plan, quiet) if plan.stamp_timed else None
     try:
         result = execute(
             plan,
@@ -298,6 +283,31 @@ def _run(plan: Plan, workers: int | None, cluster: str | None, quiet: bool) -> N
     bar.close()
     if not quiet:
         click.echo(summary(result))
+
+
+def fit_schedule(plan: Plan, quiet: bool) -> Any:
+    """The schedule model a stamp-timed run is scored on, fitted on the twin from builds of
+    random controllers of its model (also used by ``bstool campaign``)."""
+    from bstool import timingfile
+    from hil_mock.schedule_model import REPRESENTATIVES, schedule_model
+
+    state = plan.state
+    if not quiet:
+        builds = plan.schedule_builds or REPRESENTATIVES
+        click.echo(
+            f"fitting the schedule model: {builds} builds of random {state.problem.model}"
+            " controllers on the twin (a few seconds each)",
+            err=True,
+        )
+    return schedule_model(
+        state.problem.model,
+        period=plan.period,
+        legs=state.problem.legs,
+        modules=state.problem.modules,
+        timing=None if plan.timing_file is None else timingfile.load(plan.timing_file),
+        builds=plan.schedule_builds,
+        spec=None if state.robot is None else state.robot.spec,
+    )
 
 
 def summary(result: EvolveResult) -> str:

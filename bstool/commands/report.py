@@ -43,9 +43,24 @@ from bstool.commands.robot_option import robot_option
               help="--stamp-timed: the period the controllers will be compiled with "
               "(default: compile's).")  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace OUT even if it is not an earlier report.")
+@click.option(
+    "--sensitivity",
+    "sensitivity_samples",
+    type=click.IntRange(min=0),
+    default=16,
+    show_default=True,
+    metavar="SAMPLES",
+    help="How far each gait transfers: SAMPLES robots drawn from the uncertain ranges (the "
+    "robot file's, else the default box) and each parameter alone at --sensitivity-points "
+    "values, as `bstool sensitivity` (0: skip).",
+)
+@click.option("--sensitivity-points", type=click.IntRange(min=2), default=3, show_default=True,
+              help="Values per parameter of the sensitivity section's sweep.")  # fmt: skip
 @robot_option
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar or messages.")
+@click.pass_context
 def command(
+    ctx: click.Context,
     inputs: tuple[str, ...],
     out: str,
     transitions: int,
@@ -57,13 +72,46 @@ def command(
     force: bool,
     quiet: bool,
     robot: str | None,
+    sensitivity_samples: int,
+    sensitivity_points: int,
 ) -> None:
     """Compare INPUTS (evolve run directories or controller files): fitness curves, disc paths,
     mobility under single failures, distance beyond MAX_TRANS, spread over leg rotations, and
-    a table of the numbers. Open OUT/index.html in any browser (no network needed)."""
+    a table of the numbers. Open OUT/index.html in any browser (no network needed).
+
+    Given one campaign folder (made by `bstool campaign`), writes that campaign's report,
+    DIR/report unless -o is given: the same page the campaign ends with (docs/campaign.md).
+    """
+    from bstool.campaign.runner import is_campaign
     from bstool.errors import InputError
     from bstool.experiments import progress
     from bstool.experiments.report import build_report
+
+    if len(inputs) == 1 and is_campaign(inputs[0]):
+        from click.core import ParameterSource
+
+        given = [
+            f"--{name.replace('_', '-')}"
+            for name in (
+                "transitions",
+                "extrapolate",
+                "multi_samples",
+                "stamp_timed",
+                "period",
+                "robot",
+                "sensitivity_samples",
+                "sensitivity_points",
+            )
+            if ctx.get_parameter_source(name) is not ParameterSource.DEFAULT
+        ]
+        if given:
+            raise InputError(
+                f"{inputs[0]} is a campaign: its report takes {', '.join(given)} from its plan",
+                hint="drop them, or change the campaign's plan.toml",
+            )
+        explicit = ctx.get_parameter_source("out") is not ParameterSource.DEFAULT
+        _campaign(inputs[0], out if explicit else None, workers, force, quiet)
+        return
 
     if period is not None and not stamp_timed:
         raise InputError("--period only applies with --stamp-timed", hint="add --stamp-timed")
@@ -106,6 +154,35 @@ def command(
             schedule_for=schedule_for,
             evaluation=evaluation,
             robot=robot,
+            sensitivity=(sensitivity_points, sensitivity_samples) if sensitivity_samples else None,
+        )
+    click.echo(f"report: {index}")
+
+
+def _campaign(folder: str, out: str | None, workers: int | None, force: bool, quiet: bool) -> None:
+    """The report of a campaign folder (its analyses computed first where not cached)."""
+    from bstool.campaign import analyses, report
+    from bstool.campaign import plan as cp
+    from bstool.commands.campaign import analysis_schedule, evolve_settings
+    from bstool.experiments import progress
+
+    settings = evolve_settings()
+    plan = cp.load(f"{folder}/{cp.PLAN_FILE}", settings)
+    with progress.bar("report", None, quiet=quiet) as bar:
+
+        def say(msg: str) -> None:
+            if progress.enabled(quiet):
+                bar.describe(msg)
+
+        index = report.build(
+            folder,
+            plan,
+            settings,
+            out=out,
+            force=force,
+            workers=workers,
+            schedule_for=analysis_schedule,
+            progress=analyses.Progress(bar.total, bar, say),
         )
     click.echo(f"report: {index}")
 

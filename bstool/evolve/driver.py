@@ -192,6 +192,7 @@ def plan_new(
     randomize_score: str | None = None,
     validate_every: int | None = None,
     validation_samples: int | None = None,
+    train_timestep: float | None = None,
 ) -> Plan:
     """A new run, checked; ``robot``: a robot file (or ``bstool.robot.robotfile.Robot``),
     recorded by value; ``randomize``: score on random robots (docs/evolution.md)."""
@@ -202,7 +203,12 @@ def plan_new(
     extra.update(opt.stamp_timed_settings(kind, stamp_timed, period, timing, schedule_builds))
     extra.update(
         opt.randomize_settings(
-            randomize, randomize_samples, randomize_score, validate_every, validation_samples
+            randomize,
+            randomize_samples,
+            randomize_score,
+            validate_every,
+            validation_samples,
+            train_timestep,
         )
     )
     loaded, record = opt.robot_settings(robot)
@@ -315,16 +321,28 @@ def execute(
     if plan.stamp_timed:
         _check_builds(plan.schedule_builds, schedule_model)
     spec = None if state.robot is None else state.robot.spec
-    factory = factory_for(
-        plan.fitness, state.problem, threads, schedule_model if plan.stamp_timed else None, spec
-    )
-    evaluator: Evaluator
-    if cluster:
-        from bstool.evolve.cluster import DaskEvaluator
+    sched = schedule_model if plan.stamp_timed else None
+    factory = factory_for(plan.fitness, state.problem, threads, sched, spec)
+    validator_factory = None
+    if state.randomize is not None and state.randomize.train_timestep is not None:
+        # training on a coarser step; validation (best.json's fitness) at the robot's own
+        from bstool.robot import RobotSpec
 
-        evaluator = DaskEvaluator(cluster, factory, notify=on_notice)
-    else:
-        evaluator = factory.build()
+        nominal = spec if spec is not None else RobotSpec()
+        coarse = state.randomize.training_spec(nominal)
+        if coarse is not nominal:
+            validator_factory = factory
+            factory = factory_for(plan.fitness, state.problem, threads, sched, coarse)
+
+    def build(f: EvaluatorFactory) -> Evaluator:
+        if cluster:
+            from bstool.evolve.cluster import DaskEvaluator
+
+            return DaskEvaluator(cluster, f, notify=on_notice)
+        return f.build()
+
+    evaluator = build(factory)
+    validator = None if validator_factory is None else build(validator_factory)
 
     def save(st: RunState) -> None:
         if plan.directory is None:
@@ -362,15 +380,16 @@ def execute(
         if plan.fresh:
             save(state)  # the run folder (and a checkpoint) exists from the start
             plan.fresh = False
-        run(state, evaluator, after_step)
+        run(state, evaluator, after_step, validator)
     except KeyboardInterrupt as exc:
         if isinstance(exc, EvolveInterrupted):
             raise
         raise EvolveInterrupted(result_of(plan)) from None
     finally:
-        close = getattr(evaluator, "close", None)
-        if close is not None:
-            close()
+        for ev in (evaluator, validator):
+            close = getattr(ev, "close", None)
+            if close is not None:
+                close()
     return result_of(plan)
 
 
@@ -405,6 +424,7 @@ def evolve(
     randomize_score: str | None = None,
     validate_every: int | None = None,
     validation_samples: int | None = None,
+    train_timestep: float | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
 
@@ -444,7 +464,7 @@ def evolve(
         period=period, timing=timing, schedule_builds=schedule_builds, robot=robot,
         randomize=randomize, randomize_samples=randomize_samples,
         randomize_score=randomize_score, validate_every=validate_every,
-        validation_samples=validation_samples,
+        validation_samples=validation_samples, train_timestep=train_timestep,
     )  # fmt: skip
     return execute(
         plan,

@@ -252,7 +252,9 @@ def validate(
     return float(np.mean(clean_fitness(raw))), paid
 
 
-def evolve_step(state: RunState, evaluator: Evaluator) -> HistoryRow:
+def evolve_step(
+    state: RunState, evaluator: Evaluator, validator: Evaluator | None = None
+) -> HistoryRow:
     """Evaluate the scheduled population (cached), record it, breed the next generation."""
     name = state.schedule(state.step)
     partner_name = state.problem.partner_of(name)
@@ -279,7 +281,7 @@ def evolve_step(state: RunState, evaluator: Evaluator) -> HistoryRow:
         state.best_row = bits[i].copy()
         state.best_partner = None if partner is None else partner.copy()
     if state.randomize is not None and validates(state.randomize, state.step, state.total_steps):
-        value, paid = validate(state, name, bits[i], partner, evaluator)
+        value, paid = validate(state, name, bits[i], partner, validator or evaluator)
         row.validation, row.evaluations = value, row.evaluations + paid
         if state.validated is None or value > state.validated.validation:
             kept = None if partner is None else partner.copy()
@@ -300,10 +302,13 @@ def run(
     state: RunState,
     evaluator: Evaluator,
     after_step: Callable[[RunState, HistoryRow], None] | None = None,
+    validator: Evaluator | None = None,
 ) -> RunState:
-    """Step until done; ``after_step`` saves outputs / shows progress after every step."""
+    """Step until done; ``after_step`` saves outputs / shows progress after every step.
+    ``validator``: the evaluator of --randomize's validation (the robot's own timestep when
+    training runs at a coarser one; default ``evaluator``)."""
     while not state.done:
-        row = evolve_step(state, evaluator)
+        row = evolve_step(state, evaluator, validator)
         if after_step is not None:
             after_step(state, row)
     return state

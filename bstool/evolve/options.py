@@ -216,15 +216,17 @@ def randomize_settings(
     score: Any = None,
     validate_every: Any = None,
     validation_samples: Any = None,
+    train_timestep: Any = None,
 ) -> dict[str, Any]:
     """What a run saves for ``--randomize`` and its options (nothing without it)."""
-    from bstool.evolve.randomize import Randomize
+    from bstool.evolve.randomize import DEFAULT_TRAIN_TIMESTEP, Randomize
 
     given = {
         "randomize-samples": samples,
         "randomize-score": score,
         "validate-every": validate_every,
         "validation-samples": validation_samples,
+        "train-timestep": train_timestep,
     }
     if not randomize:
         for name, value in given.items():
@@ -238,6 +240,7 @@ def randomize_settings(
         validate_every=d.validate_every if validate_every is None else validate_every,
         validation_samples=d.validation_samples if validation_samples is None
         else validation_samples,
+        train_timestep=DEFAULT_TRAIN_TIMESTEP if train_timestep is None else train_timestep,
     )  # fmt: skip
     return {"randomize": settings.to_json()}
 

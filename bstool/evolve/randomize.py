@@ -18,6 +18,7 @@ validation set (docs/evolution.md "Randomized physics").
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -36,6 +37,10 @@ VALIDATION_STREAM = 0x56414C49  # "VALI": the validation set's
 DEFAULT_SAMPLES = 4
 DEFAULT_VALIDATE_EVERY = 5
 DEFAULT_VALIDATION_SAMPLES = 64
+#: the training draws' physics step by default: 3 ms keeps the K = 4 mean within 2.7 % and
+#: rank correlation 0.986 of 1 ms for every model, at 0.70x the time of 2 ms (4 ms does not:
+#: docs/robot.md "Timestep fidelity"); validation and every reported figure stay at the robot's
+DEFAULT_TRAIN_TIMESTEP = 0.003
 
 
 @dataclass(frozen=True)
@@ -46,6 +51,7 @@ class Randomize:
     score: str = "mean"
     validate_every: int = DEFAULT_VALIDATE_EVERY
     validation_samples: int = DEFAULT_VALIDATION_SAMPLES
+    train_timestep: float | None = None  # the training draws' physics step (None: the robot's)
 
     def __post_init__(self) -> None:
         if self.score not in SCORES:
@@ -58,14 +64,31 @@ class Randomize:
                 flag = {"samples": "--randomize-samples", "validate_every": "--validate-every",
                         "validation_samples": "--validation-samples"}[name]  # fmt: skip
                 raise InputError(f"{flag} must be an integer of at least {low}, got {value!r}")
+        step = self.train_timestep
+        if step is not None and (
+            isinstance(step, bool) or not isinstance(step, int | float) or not 0 < step <= 0.01
+        ):
+            raise InputError(
+                f"--train-timestep must be a step in seconds in (0, 0.01], got {step!r}"
+            )
 
     def to_json(self) -> dict[str, Any]:
-        return {
+        out: dict[str, Any] = {
             "samples": self.samples,
             "score": self.score,
             "validate_every": self.validate_every,
             "validation_samples": self.validation_samples,
         }
+        if self.train_timestep is not None:
+            out["train_timestep"] = self.train_timestep
+        return out
+
+    def training_spec(self, nominal: RobotSpec) -> RobotSpec:
+        """The nominal robot as training runs it: at ``train_timestep`` if set and coarser than
+        the robot's own step (never finer)."""
+        if self.train_timestep is None or self.train_timestep <= nominal.timestep:
+            return nominal
+        return dataclasses.replace(nominal, timestep=float(self.train_timestep))
 
     @classmethod
     def from_json(cls, obj: Any) -> Randomize:
@@ -75,8 +98,12 @@ class Randomize:
 
 
 def training_robots(robot: Robot, settings: Randomize, seed: int, step: int) -> list[RobotSpec]:
-    """The K robots every candidate of ``step`` meets."""
-    return robot.box.samples(robot.spec, settings.samples, seed=[seed, RANDOMIZE_STREAM, step])
+    """The K robots every candidate of ``step`` meets (at the training timestep)."""
+    drawn = robot.box.samples(robot.spec, settings.samples, seed=[seed, RANDOMIZE_STREAM, step])
+    train = settings.training_spec(robot.spec)
+    if train is robot.spec:
+        return drawn
+    return [dataclasses.replace(r, timestep=train.timestep) for r in drawn]
 
 
 def validation_robots(robot: Robot, settings: Randomize, seed: int) -> list[RobotSpec]:

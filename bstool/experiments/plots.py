@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
-def _figure(width: float, height: float) -> Figure:
+def new_figure(width: float, height: float) -> Figure:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -26,7 +26,7 @@ def _figure(width: float, height: float) -> Figure:
     return _Figure(figsize=(width, height), dpi=100)
 
 
-def _save(fig: Figure, path: str | os.PathLike[str], fmt: str = "png") -> None:
+def save_figure(fig: Figure, path: str | os.PathLike[str], fmt: str = "png") -> None:
     fig.tight_layout()
     try:
         with fileio.atomic_open(path, "wb") as fh:
@@ -42,7 +42,7 @@ def plot_single_failures(
     first = next(iter(results.values()))
     labels = [str(r.failed[0]) for r in first.runs]
     x = np.arange(len(labels))
-    fig = _figure(max(8.0, 0.32 * len(labels) * max(1, len(results)) ** 0.5), 4.2)
+    fig = new_figure(max(8.0, 0.32 * len(labels) * max(1, len(results)) ** 0.5), 4.2)
     ax = fig.add_subplot()
     width = 0.8 / len(results)
     for idx, (name, res) in enumerate(results.items()):
@@ -56,14 +56,14 @@ def plot_single_failures(
     ax.set_title(title or "Degree of mobility under single module failure")
     ax.legend(fontsize=8)
     ax.grid(True, axis="y", linewidth=0.3)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def plot_multi_failures(
     path: str | os.PathLike[str], curves: Mapping[str, Mapping[int, Sequence[FaultRun]]]
 ) -> None:
     """Median M_D (with the interquartile band) against the number of failed modules."""
-    fig = _figure(6.0, 4.2)
+    fig = new_figure(6.0, 4.2)
     ax = fig.add_subplot()
     every_k: set[int] = set()
     for name, by_k in curves.items():
@@ -84,7 +84,7 @@ def plot_multi_failures(
     ax.set_title("Mobility under multiple failures")
     ax.legend(fontsize=8)
     ax.grid(True, linewidth=0.3)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def plot_distance_curves(
@@ -94,7 +94,7 @@ def plot_distance_curves(
     title: str = "Distance against state transition",
 ) -> None:
     """Distance from the start after each transition (paper Fig. 19), in cm."""
-    fig = _figure(6.5, 4.2)
+    fig = new_figure(6.5, 4.2)
     ax = fig.add_subplot()
     for name, curve in curves.items():
         ax.plot(np.arange(len(curve)), np.asarray(curve) * 100.0, label=name)
@@ -105,7 +105,7 @@ def plot_distance_curves(
     ax.set_title(title)
     ax.legend(fontsize=8)
     ax.grid(True, linewidth=0.3)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 _POPULATION_LABEL = {"main": "", "control": " control rule", "leg": " leg rule"}
@@ -118,9 +118,10 @@ def plot_fitness(
 ) -> None:
     """Maximum (solid) and mean (dashed) fitness against generation, several runs overlaid
     (paper Figs 7, 9–11, 15–16). Rows are ``HistoryRow``s (generation, best, mean,
-    population); co-evolution runs draw one pair of curves per population. The format comes
+    population); co-evolution runs draw one pair of curves per population; a randomized run's
+    validation means are drawn as open circles. The format comes
     from the file's suffix (.png, .svg, .pdf)."""
-    fig = _figure(8.0, 5.0)
+    fig = new_figure(8.0, 5.0)
     ax = fig.add_subplot()
     harm: Any = None  # parasites (--coevolve-faults) score a fraction of distance lost: own axis
     colours = [f"C{i}" for i in range(10)]
@@ -141,6 +142,11 @@ def plot_fitness(
                         label=f"{label} max")  # fmt: skip
             target.plot(gens, mean, color=colour, ls="-." if harm is target else "--",
                         label=f"{label} mean")  # fmt: skip
+            checked = [(g, v * scale) for g, r in zip(gens, mine, strict=True)
+                       if (v := getattr(r, "validation", None)) is not None]  # fmt: skip
+            if checked:  # --randomize: the best's mean over the validation robots
+                target.plot(*zip(*checked, strict=True), color=colour, ls="none", marker="o",
+                            ms=5, mfc="white", label=f"{label} validation")  # fmt: skip
             curves += 1
     if harm is not None:
         harm.set_ylabel("parasites: fraction of distance lost")
@@ -151,4 +157,4 @@ def plot_fitness(
     ax.grid(True, linewidth=0.3)
     ax.legend(fontsize="small")
     suffix = os.fspath(path).rsplit(".", 1)[-1].lower()
-    _save(fig, path, suffix if suffix in ("svg", "pdf") else "png")
+    save_figure(fig, path, suffix if suffix in ("svg", "pdf") else "png")

@@ -77,6 +77,7 @@ def build_report(
     schedule_for: ScheduleFor | None = None,
     evaluation: str = "plain",
     robot: Any = None,
+    sensitivity: tuple[int, int] | None = None,
 ) -> Path:
     """Run every experiment for every input and write ``out_dir/index.html`` (atomically: the
     whole directory appears at once). ``multi_samples`` > 0 adds the multiple-failure curves:
@@ -87,7 +88,9 @@ def build_report(
     ``runs_done(k)`` of every k finished. ``schedule_for`` (``bstool report --stamp-timed``)
     makes every run stamp-timed: each state sequence is played as the schedule model of its
     controller says a build would (``evaluation`` names it in the page and report.json); the
-    perturbed starts stay on the plain simulator (a perturbed start has no schedule model)."""
+    perturbed starts stay on the plain simulator (a perturbed start has no schedule model).
+    ``sensitivity`` (points, samples): ``bstool sensitivity``'s section, every controller on
+    the same robots of the first one's uncertain ranges."""
     from bstool.experiments import plots
     from bstool.sim.batch import BatchEvaluator
     from bstool.sim.plot import plot_paths
@@ -100,19 +103,28 @@ def build_report(
     if not entries:
         raise InputError("nothing to report", hint="give run directories or controller files")
     say = progress or (lambda _msg: None)
+    design = None
+    if sensitivity is not None:
+        from bstool.experiments import sensitivity as sens
+        from bstool.robot.robotfile import Robot
+
+        chosen = entries[0].loaded.robot or Robot()
+        design = sens.design(chosen, points=sensitivity[0], samples=sensitivity[1], seed=0)
     if runs_total:
         runs_total(sum(simulations(e.loaded.controller, transitions, extrapolate,
-                                   multi_samples, multi_k) for e in entries))  # fmt: skip
+                                   multi_samples, multi_k) for e in entries)
+                   + (0 if design is None else design.count * len(entries)))  # fmt: skip
     done = runs_done or (lambda _k: None)
     with outputs.staged_dir(out) as tmp:
         rows: list[dict[str, Any]] = []
         faults: dict[str, SingleFaults] = {}
         multi: dict[str, dict[int, list[mobility.FaultRun]]] = {}
         runs = []
+        transfers: list[Any] = []
         for e in entries:
             c = e.loaded.controller
             with BatchEvaluator(e.loaded.spec, workers=workers) as ev:
-                run = _runner(ev, None if schedule_for is None else schedule_for(c), runs_done)
+                run = batch_runner(ev, None if schedule_for is None else schedule_for(c), runs_done)
                 evaluate = mobility.distances_of(run)
                 say(f"{e.name}: path and extrapolation")
                 plain, reinit = run(
@@ -128,6 +140,13 @@ def build_report(
                 spread = rotation_spread(c, evaluate, transitions)
                 perturbed = perturbation_spread(c, e.loaded.spec, transitions, samples=3)
                 done(1 + 3)
+                transfer = None
+                if design is not None:
+                    say(f"{e.name}: {design.count} robots of the uncertain ranges")
+                    schedule = None if schedule_for is None else schedule_for(c)
+                    transfer = sens.measure(e.name, c.states(transitions), design,
+                                            sens.on_batch(ev, schedule, done))  # fmt: skip
+                    transfers.append(transfer)
                 if multi_samples > 0:
                     say(f"{e.name}: {multi_samples} random sets of K failed modules per K")
                     multi[e.name] = {
@@ -165,6 +184,7 @@ def build_report(
                         str(k): mobility.summarize(v) for k, v in multi.get(e.name, {}).items()
                     },
                     "history": [vars(r) for r in e.history] if e.history else None,
+                    "sensitivity": None if transfer is None else transfer.to_json(),
                 }
             )
         say("figures")
@@ -175,6 +195,10 @@ def build_report(
         if multi:
             plots.plot_multi_failures(tmp / "multi.png", multi)
             figures["multi"] = "multi.png"
+        figures["sensitivity"] = None
+        if design is not None and transfers:
+            sens.plot(transfers, design, str(tmp / "sensitivity.png"))
+            figures["sensitivity"] = "sensitivity.png"
         histories = {e.name: e.history for e in entries if e.history}
         figures["fitness"] = None
         if histories:
@@ -191,13 +215,21 @@ def build_report(
             "multi_k": [str(k) for k in multi_k] if multi else [],
             "models": models,
             "figures": figures,
+            "sensitivity": None
+            if design is None
+            else {
+                "points": sensitivity[0] if sensitivity else None,
+                "samples": len(design.joint),
+                "seed": design.seed,
+                "box": design.robot.box.describe(),
+            },
         }
         fileio.write_text(tmp / "index.html", _render(context))
         fileio.write_json(tmp / "report.json", {k: v for k, v in context.items()})
     return out / "index.html"
 
 
-def _runner(
+def batch_runner(
     ev: Any, schedule_model: Any, progress: Callable[[int], None] | None
 ) -> Callable[[Sequence[np.ndarray]], list[Any]]:
     """State sequences → SimResults: plain, or stamp-timed with ``schedule_model``."""
@@ -209,7 +241,7 @@ def _runner(
 
 
 MARKER = b'<meta name="generator" content="bstool report'
-_REPORT_FILE = re.compile(r"^(index\.html|report\.json|[\w.-]+\.png)$")
+_REPORT_FILE = re.compile(r"^(index\.html|report\.json|tables\.md|[\w.-]+\.png)$")
 
 
 def is_report(folder: Path) -> bool:

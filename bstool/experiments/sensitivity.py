@@ -140,6 +140,28 @@ def measure(name: str, states: np.ndarray, plan: Design, evaluate: Evaluate) -> 
     return Transfer(name, nominal, sweeps, joint)
 
 
+def on_batch(
+    ev: Any, schedule: Any = None, done: Callable[[int], object] | None = None
+) -> Evaluate:
+    """A ``BatchEvaluator`` as an :data:`Evaluate`: plain, or stamp-timed on ``schedule`` (a
+    schedule model: the first build's schedule of each sequence); ``done(k)`` after each call."""
+
+    def run(seqs: list[np.ndarray], robots: list[RobotSpec | None]) -> list[float]:
+        if schedule is None:
+            results = ev.evaluate(seqs, robot=robots)
+        else:
+            from bstool.sim.timed import schedules_of
+
+            results = ev.evaluate_schedules(
+                [schedules_of(schedule, s)[0] for s in seqs], robot=robots
+            )
+        if done is not None:
+            done(len(results))
+        return [float(r.distance) for r in results]
+
+    return run
+
+
 def chunked(evaluate: Evaluate, size: int, done: Callable[[int], object] | None) -> Evaluate:
     """``evaluate`` in chunks of ``size`` runs, telling ``done`` after each (progress)."""
 

@@ -1,0 +1,189 @@
+"""Re-evolve the shipped gaits for an uncertain robot and compare, on fresh robots, with the
+gaits shipped before and with nominal evolution at equal evaluations (issue 29 §5).
+
+For each model and seed (resumable: a finished run is kept, an interrupted one resumed):
+
+* ``rand``: ``evolve --stamp-timed --randomize`` (K robots per generation from the default
+  box, validation on 64 robots) at the shipped controller's GA budget (its ``ga`` field);
+* ``nominal`` (unless ``--no-nominal``): ``evolve --stamp-timed`` on the nominal robot with K
+  times the generations (ca2ddiff: K times the outer loops): about the same evaluations.
+
+Then every best.json, and the shipped one, runs on ``--robots`` fresh robots of the default
+box (seeded apart from every training and validation draw; the same robots for all) and on the
+nominal robot, stamp-timed (the schedule model each was scored on). Printed: per model and
+run the nominal distance, the mean over the robots, the 10th percentile, the validation mean;
+the candidate to ship (the rand seed with the best validation mean) against the shipped gait
+with the issue's targets: mean >= 1.3 x the shipped gait's, 10th percentile >= 50 % of its
+own nominal distance, nominal >= 85 % of the shipped gait's. OUT/summary.json holds it all.
+
+Usage: python bench/reship_randomized.py OUT [--models nnsin,...] [--seeds 1,2,3]
+       [--samples 4] [--robots 64] [--workers 2] [--no-nominal] [--measure-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bstool import fileio
+from bstool.builtin import builtin_controller
+from bstool.controllers import load_controller
+from bstool.evolve import driver
+from bstool.evolve.checkpoint import is_run
+from bstool.experiments import sensitivity as sens
+from bstool.robot.robotfile import Robot
+from hil_mock.schedule_model import schedule_model
+
+MODELS = ("nnsin", "nnsig", "ca1d", "ca2dsing", "ca2ddiff")
+FRESH_SEED = 20261204  # the measuring robots: apart from every run's draws
+
+
+def budget(model: str) -> dict[str, Any]:
+    ga = load_controller(builtin_controller(model)).ga or {}
+    return {k: ga[k] for k in ("pop", "gens", "coevol_gens", "pm")}
+
+
+def evolve_one(out: Path, model: str, seed: int, kind: str, args: argparse.Namespace) -> Path:
+    folder = out / f"{model}-{kind}-s{seed}"
+    if (folder / "best.json").exists() and is_run(folder):
+        state = driver.plan_resume(folder, {}).state
+        if state.done:
+            return folder
+        driver.execute(
+            driver.plan_resume(folder, {}), workers=args.workers, schedule_model=_schedule(model, 0)
+        )
+        return folder
+    b = budget(model)
+    gens = b["gens"] if kind == "rand" else b["gens"] * args.samples
+    more: dict[str, Any] = {}
+    if kind == "rand":
+        more = {"randomize": True, "randomize_samples": args.samples}
+    start = time.perf_counter()
+    driver.evolve(
+        model,
+        pop=b["pop"],
+        gens=gens,
+        coevol_gens=b["coevol_gens"],
+        pm=b["pm"],
+        seed=seed,
+        out=folder,
+        force=True,
+        workers=args.workers,
+        stamp_timed=True,
+        schedule_model=_schedule(model, 0),
+        **more,
+    )
+    fileio.write_json(folder / "wall.json", {"seconds": time.perf_counter() - start})
+    return folder
+
+
+_SCHEDULES: dict[str, Any] = {}
+
+
+def _schedule(model: str, builds: int) -> Any:
+    if model not in _SCHEDULES:
+        _SCHEDULES[model] = schedule_model(model, builds=builds)
+    return _SCHEDULES[model]
+
+
+def measure(paths: dict[str, Path], model: str, args: argparse.Namespace) -> dict[str, Any]:
+    """Every controller of ``paths`` on the same fresh robots, stamp-timed."""
+    from bstool.evolve.fitness import StampTimedFitness
+
+    plan = sens.Design(
+        Robot(), {}, Robot().box.samples(Robot().spec, args.robots, seed=[FRESH_SEED]), FRESH_SEED
+    )
+    ev = StampTimedFitness(_schedule(model, 0), workers=args.workers).build()
+    out = {}
+    try:
+        for name, path in paths.items():
+            ctrl = load_controller(path)
+
+            def run(seqs: list[Any], robots: list[Any]) -> list[float]:
+                return [float(d) for d in ev(seqs, robot=robots)]
+
+            t = sens.measure(name, ctrl.states(30), plan, run)
+            out[name] = {
+                "nominal": t.nominal,
+                "mean": t.mean,
+                "p10": t.p10,
+                "worst": t.worst,
+                "validation": ctrl.fitness if (ctrl.ga or {}).get("randomize") else None,
+                "path": str(path),
+            }
+    finally:
+        ev.close()
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--models", default=",".join(MODELS))
+    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--samples", type=int, default=4, help="K of --randomize")
+    ap.add_argument("--robots", type=int, default=64, help="fresh robots to measure on")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-nominal", action="store_true", help="skip nominal evolution")
+    ap.add_argument("--measure-only", action="store_true", help="no evolution, measure runs")
+    args = ap.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    seeds = [int(s) for s in args.seeds.split(",")]
+    kinds = ["rand"] if args.no_nominal else ["rand", "nominal"]
+    summary: dict[str, Any] = {}
+    for model in args.models.split(","):
+        paths: dict[str, Path] = {"shipped": builtin_controller(model)}
+        for seed in seeds:
+            for kind in kinds:
+                folder = args.out / f"{model}-{kind}-s{seed}"
+                if not args.measure_only:
+                    evolve_one(args.out, model, seed, kind, args)
+                if (folder / "best.json").exists():
+                    paths[f"{kind}-s{seed}"] = folder / "best.json"
+        figures = measure(paths, model, args)
+        rand = {k: v for k, v in figures.items() if k.startswith("rand")}
+        pick = max(rand, key=lambda k: rand[k]["validation"] or 0.0) if rand else None
+        old = figures["shipped"]
+        verdict = {}
+        if pick is not None:
+            new = figures[pick]
+            verdict = {
+                "candidate": pick,
+                "mean_ratio": new["mean"] / old["mean"],
+                "p10_of_nominal": new["p10"] / new["nominal"],
+                "nominal_ratio": new["nominal"] / old["nominal"],
+            }
+            verdict["targets_met"] = bool(
+                verdict["mean_ratio"] >= 1.3
+                and verdict["p10_of_nominal"] >= 0.5
+                and verdict["nominal_ratio"] >= 0.85
+            )
+        summary[model] = {"runs": figures, "verdict": verdict}
+        fileio.write_json(args.out / "summary.json", summary)
+        print(f"\n{model}: stamp-timed, {args.robots} fresh robots of the default box (cm)")
+        print(f"  {'run':<14}{'nominal':>9}{'mean':>8}{'p10':>8}{'worst':>8}{'validation':>12}")
+        for name, f in figures.items():
+            val = "" if f["validation"] is None else f"{f['validation'] * 100:.2f}"
+            print(
+                f"  {name:<14}{f['nominal'] * 100:9.2f}{f['mean'] * 100:8.2f}"
+                f"{f['p10'] * 100:8.2f}{f['worst'] * 100:8.2f}{val:>12}"
+            )
+        for kind in kinds:
+            means = [f["mean"] for n, f in figures.items() if n.startswith(kind)]
+            if means:
+                print(f"  {kind} over {len(means)} seeds: mean {np.mean(means) * 100:.2f} cm")
+        if verdict:
+            print(
+                f"  candidate {verdict['candidate']}: mean x{verdict['mean_ratio']:.2f} of the "
+                f"shipped (target 1.3), p10 {verdict['p10_of_nominal']:.0%} of its nominal "
+                f"(target 50 %), nominal x{verdict['nominal_ratio']:.2f} (target 0.85): "
+                f"{'met' if verdict['targets_met'] else 'NOT met'}"
+            )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,171 @@
+"""The campaign report: the verdict rules, the claims on made-up runs, and a small campaign's
+report from its folder alone, with the analyses cached by the digest of their inputs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from bstool.campaign import claims as cl
+from bstool.campaign import stats
+
+# -- the verdict rules ---------------------------------------------------------------------
+
+
+def test_intervals() -> None:
+    iv = stats.mean_interval([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert iv.mean == 3.0 and iv.low is not None and iv.high is not None
+    assert 1.0 <= iv.low < 3.0 < iv.high <= 5.0
+    assert stats.mean_interval([1.0, 2.0, 3.0, 4.0, 5.0]) == iv  # seeded: the same every time
+    assert stats.mean_interval([2.0, 2.0, 2.0]) == stats.Interval(2.0, 2.0, 2.0, 3)
+    assert stats.mean_interval([2.0, None, float("nan")]) == stats.Interval(2.0, None, None, 1)
+    assert stats.mean_interval([]) == stats.Interval(None, None, None, 0)
+    d = stats.difference_interval([10.0, 11, 12, 13, 14], [1.0, 2, 3, 4, 5])
+    assert d.mean == 9.0 and d.low is not None and d.low > 0
+
+
+def test_the_rules() -> None:
+    low, high = [1.0, 2, 3, 4, 5], [6.0, 7, 8, 9, 10]
+    t = stats.mann_whitney(high, low)
+    assert t is not None and t.p == pytest.approx(2 / 252) and t.direction == 1
+    assert stats.greater(t) == stats.HOLDS and stats.smaller(t) == stats.FAILS
+    back = stats.mann_whitney(low, high)
+    assert stats.greater(back) == stats.FAILS and stats.smaller(back) == stats.HOLDS
+    mixed = stats.mann_whitney([1.0, 5, 3, 8, 2], [2.5, 4, 6, 1.5, 7])
+    assert stats.greater(mixed) == stats.UNCLEAR
+    assert stats.greater(None) == stats.UNCLEAR
+    same = [10.0, 10.1, 9.9, 10.05, 9.95]
+    close = stats.difference_interval(same, [x + 0.01 for x in same])
+    near = stats.mann_whitney(same, [x + 0.01 for x in same])
+    assert stats.similar(near, close, 1.0) == stats.HOLDS
+    assert stats.similar(near, close, 0.001) == stats.UNCLEAR
+    assert stats.similar(t, stats.difference_interval(high, low), 100.0) == stats.FAILS
+    assert stats.positive(stats.mean_interval([1.0, 2, 3])) == stats.HOLDS
+    assert stats.negative(stats.mean_interval([1.0, 2, 3])) == stats.FAILS
+    assert stats.positive(stats.mean_interval([-1.0, 2, 3])) == stats.UNCLEAR
+    assert stats.matches(stats.mean_interval([14.0, 15, 16, 17]), 15) == stats.HOLDS
+    assert stats.matches(stats.mean_interval([14.0, 15, 16, 17]), 8) == stats.FAILS
+    assert stats.combined([stats.HOLDS, stats.HOLDS]) == stats.HOLDS
+    assert stats.combined([stats.HOLDS, stats.UNCLEAR]) == stats.UNCLEAR
+    assert stats.combined([stats.UNCLEAR, stats.FAILS]) == stats.FAILS
+
+
+def _runs(fitness: dict[str, list[float]]) -> dict[str, list[cl.RunData]]:
+    states = np.zeros((3, 5, 6), dtype=np.int64)
+    return {
+        m: [cl.RunData(f"{m}-s{i}", m, i, f, [], {}, states, 2) for i, f in enumerate(values)]
+        for m, values in fitness.items()
+    }
+
+
+def _claim(claims: list[cl.Claim], key: str) -> cl.Claim:
+    return next(c for c in claims if c.key == key)
+
+
+def test_claims_on_made_up_runs() -> None:
+    base = [0.30, 0.31, 0.32, 0.33, 0.34]
+    runs = _runs({
+        "nnsin": [x + 0.2 for x in base], "nnsig": base, "ca1d": base,
+        "ca2dsing": [x + 0.001 for x in base], "ca2ddiff": [x + 0.1 for x in base],
+    })  # fmt: skip
+    claims = cl.evaluate(runs, list(runs), set())
+    assert _claim(claims, "nnsin-furthest").verdict == stats.HOLDS
+    assert _claim(claims, "nnsin-above-nnsig").verdict == stats.HOLDS
+    assert _claim(claims, "ca2ddiff-best-ca").verdict == stats.HOLDS
+    assert _claim(claims, "ca2dsing-comparable-to-ca1d").verdict == stats.HOLDS
+    faults = _claim(claims, "nn-tolerate-failures")
+    assert faults.verdict == cl.NOT_TESTED and "[analyses] faults" in (faults.missing or "")
+    runs["nnsin"] = runs["nnsin"][:1]  # one seed: nothing can be told
+    claims = cl.evaluate(runs, list(runs), set())
+    assert _claim(claims, "nnsin-furthest").verdict == stats.UNCLEAR
+    runs = _runs({"nnsin": base, "nnsig": [x + 0.2 for x in base]})
+    claims = cl.evaluate(runs, list(runs), set())
+    assert _claim(claims, "nnsin-above-nnsig").verdict == stats.FAILS
+    assert (
+        _claim(claims, "ca2ddiff-best-ca").missing == "no finished run of ca1d, ca2dsing, ca2ddiff"
+    )
+
+
+# -- a small campaign's report -------------------------------------------------------------
+
+PLAN = """format = "bstool.campaign/1"
+models = ["nnsig", "ca1d"]
+seeds = [1, 2]
+
+[evolve]
+pop = 4
+gens = 2
+fitness = "toy"
+transitions = 2
+
+[analyses]
+faults = true
+multi-failures = 1
+extrapolate = { transitions = 4 }
+paths = true
+initial-states = { k = [1, 3], samples = 2 }
+sensitivity = { points = 2, samples = 2 }
+"""
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from bstool.cli import main
+
+    d = tmp_path_factory.mktemp("report")
+    (d / "plan.toml").write_text(PLAN)
+    assert main(["campaign", str(d / "plan.toml"), "-o", str(d / "C"), "-q"]) == 0
+    return d / "C"
+
+
+def _mtimes(folder: Path) -> dict[str, int]:
+    return {str(p.relative_to(folder)): p.stat().st_mtime_ns
+            for p in sorted((folder / "analyses").rglob("*.json"))}  # fmt: skip
+
+
+def _stable(report: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in report.items() if k not in ("made", "sessions", "campaign_wall",
+                                                         "campaign_wall_s", "runs")}  # fmt: skip
+
+
+@pytest.mark.slow
+def test_the_report(folder: Path, cli: Any) -> None:
+    report = json.loads((folder / "report" / "report.json").read_text())
+    assert report["format"] == "bstool.campaign-report/1"
+    assert report["finished"] == report["total"] == 4
+    keys = {c["key"] for c in report["claims"]}
+    assert {"fitness-rises", "nnsin-above-nnsig", "fig17-counts", "lead-failures-hurt-most",
+            "nnsig-straightest", "ca-initial-states", "nnsig-clustering"} <= keys  # fmt: skip
+    verdicts = {stats.HOLDS, stats.FAILS, stats.UNCLEAR, cl.NOT_TESTED}
+    assert {c["verdict"] for c in report["claims"]} <= verdicts
+    for c in report["claims"]:
+        for row in c["rows"]:
+            if row["test"] is not None:
+                assert 0 <= row["test"]["p"] <= 1
+    figures = {n for n in report["figures"].values() if n}
+    assert {"fitness.png", "faults.png", "paths.png", "extrapolation.png", "initial-states.png",
+            "gait-nnsig.png", "state-changes.png", "sensitivity.png"} <= figures  # fmt: skip
+    assert all((folder / "report" / n).is_file() for n in figures)
+    html = (folder / "report" / "index.html").read_text()
+    assert "bstool evolve nnsig --pop 4 --gens 2 --fitness toy --transitions 2 --seed 1" in html
+    assert "format = &#34;bstool.campaign/1&#34;" in html  # the plan, verbatim
+    # bstool report DIR: the same page from DIR alone, nothing computed again
+    before = _mtimes(folder)
+    again = cli("report", str(folder), "-q")
+    assert again.code == 0, again.err
+    assert _mtimes(folder) == before
+    assert _stable(json.loads((folder / "report" / "report.json").read_text())) == _stable(report)
+    # a changed best.json: its analyses are computed again, the others' are kept
+    best = folder / "runs" / "ca1d-s2" / "best.json"
+    obj = json.loads(best.read_text())
+    obj["fitness"] = 0.5
+    best.write_text(json.dumps(obj))
+    assert cli("report", str(folder), "-o", str(folder.parent / "elsewhere"), "-q").code == 0
+    after = _mtimes(folder)
+    changed = {k for k in after if after[k] != before[k]}
+    assert changed == {k for k in after if k.startswith("analyses/ca1d-s2/")}
+    assert (folder.parent / "elsewhere" / "index.html").is_file()
