@@ -62,6 +62,9 @@ class ServoTrack:
     longest_gap_ns: int = 0
     pulses: int = 0
     limp: bool = False
+    # its own module lost power since its last pulse (--reset): the next gap is an outage
+    powered_off: bool = False
+    longest_outage_ns: int = 0  # the longest time without pulses across its own power-offs
 
     def angle_of(self, units: int) -> float:
         return float(np.interp(units, self.widths, self.angles))

@@ -27,7 +27,9 @@ class TwinCheck:
     first_mismatch: dict[str, Any] | None  # the earliest such state (its module, transition)
     twin_distance: float
     sim_distance: float | None
-    period_mean: float | None  # None: no module made two transitions (nothing to measure)
+    # the running period: transitions begun once every module had moved (None: no module
+    # made two transitions, nothing to measure)
+    period_mean: float | None
     period_std: float | None
     period_nominal: float  # the build's --period (the reference simulation's transition time)
     period_estimate: float  # the manifest's estimated period (timing model)
@@ -46,6 +48,12 @@ class TwinCheck:
     # --reset: each power-off, the reference it was compared with (healthy, or failed_at T +
     # rejoin T2 read from the record: hil_mock/outage.py)
     outages: list[dict[str, Any]] = field(default_factory=list)
+    # when every running module had made its first transition (s): the start-up, which a
+    # neighbour silent from power-up (a cut, a failed module) lengthens by the power-up window
+    moving_s: float = math.nan
+    # --reset: each reset module's longest time without pulses across its own power-off (s),
+    # reported apart from servo_gap_max (the gaps of running modules)
+    servo_outages: dict[str, float] = field(default_factory=dict)
 
     @property
     def verdict(self) -> str:
@@ -119,7 +127,7 @@ def check(
                          "reference": want[t : t + 5]}  # fmt: skip
     else:
         compared = min([transitions + 1, *(len(s) for s in result.states.values())])
-    mean, std = result.period_stats()
+    mean, std = result.running_period_stats()
     hash8 = build.manifest.controller.hash8
     ok = all(line == announce.line(mid, hash8) for mid, line in result.announcements.items())
     estimates = [m.timing.longest_servo_gap_s for m in build.manifest.modules]
@@ -145,6 +153,8 @@ def check(
         outages=[o.to_json() for o in outages],
         compared=compared,
         virtual_seconds=result.virtual_seconds,
+        moving_s=result.moving_s,
+        servo_outages={str(m): s for m, s in result.servo_outages.items()},
     )
 
 

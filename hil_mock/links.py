@@ -62,6 +62,8 @@ class Links:
     welcomes: list[tuple[ModuleId, ModuleId, int]]
     # wires cut during the run: {the two modules: the virtual ns from which no byte crosses}
     cut_at_ns: dict[frozenset[ModuleId], int]
+    # one-way wires: {(sender, receiver): the virtual ns from which its bytes to it are lost}
+    lost_ns: dict[tuple[ModuleId, ModuleId], int]
 
     def _route(self, mid: ModuleId, pin: int, value: int, start_ns: int, mode: int) -> None:
         if value & 0xF8 == WELCOME:
@@ -74,10 +76,12 @@ class Links:
             value ^= 1 << int(rng.integers(8))  # one bit flipped on the wire
             self.noise_events["flipped"] += 1
         tx_bit_ns = self.stamps[mid].clock.bit_ns(mode)  # the sender's own bit time
-        cut_at = self.cut_at_ns
+        cut_at, lost = self.cut_at_ns, self.lost_ns
         for peer, peer_pin in self.wires.get((mid, pin), ()):
             if cut_at and start_ns >= cut_at.get(frozenset((mid, peer)), NEVER):
                 continue  # the wire came loose
+            if lost and start_ns >= lost.get((mid, peer), NEVER):
+                continue  # the peer's receive line is broken: the wire works one way only
             stamp = self.stamps.get(peer)
             if stamp is not None:
                 stamp.deliver_byte(peer_pin, value, start_ns, mode, tx_bit_ns)

@@ -222,7 +222,9 @@ def _transition_at(twin: RobotTwin, mid: ModuleId, when_ns: int) -> int:
     return max((i for i, t in enumerate(times) if 0 <= t <= when_ns), default=0)
 
 
-def nn_cut_failures(twin: RobotTwin) -> dict[ModuleId, int]:
+def nn_cut_failures(
+    twin: RobotTwin, cuts_at: Mapping[frozenset[ModuleId], float] | None = None
+) -> dict[ModuleId, int]:
     """NN: a chain wire j - (j + 1) cut in a running robot (``cut_at``) is j + 1 failing at the
     last transition it took before the cut: it hears nobody upstream, holds that state (its
     next state follows only from the held upstream states) and j's bypass feeds j + 2 with it
@@ -230,7 +232,8 @@ def nn_cut_failures(twin: RobotTwin) -> dict[ModuleId, int]:
     silence after the cut). A cut bypass changes nothing."""
     pace_ns = link.NN.pace_ticks * link.NN_TICK_MS * 1_000_000 if link.NN.pace_ticks else 0
     out: dict[ModuleId, int] = {}
-    for pair, at_ns in twin.cut_at_ns.items():
+    timed = twin.cut_at_ns if cuts_at is None else {p: round(s * NS) for p, s in cuts_at.items()}
+    for pair, at_ns in timed.items():
         a, b = sorted(pair)
         if a.leg == b.leg and b.module - a.module == 1:
             out[b] = _transition_at(twin, b, at_ns + pace_ns)
@@ -369,27 +372,104 @@ def compared_record(seq: list[int], outage: Outage, reference: list[int]) -> lis
     return out
 
 
+def nn_power_up_cut_reference(
+    ctrl: Controller,
+    transitions: int,
+    cuts: Sequence[frozenset[ModuleId] | tuple[ModuleId, ModuleId]],
+    failed_at: Mapping[ModuleId, int] | None = None,
+) -> np.ndarray | None:
+    """NN: R^0..R^T with chain wires A - B (B = A + 1) cut from power-up (protocol/link.md
+    §4.6, cut): A marks B dead and feeds B + 1 on the bypass with B's R^0, so every module but
+    B follows ``--fail B``; B hears nobody upstream and paces on the R^0 of 0..A, so B follows
+    its leg's upstream failed (``--fail`` of 0..A). A cut bypass changes nothing. None when a
+    leg has two cut chain wires (no documented behaviour). ``failed_at``: modules failing
+    during the run besides (a chain wire cut in a running robot, :func:`nn_cut_failures`)."""
+    chain = {}
+    for pair in cuts:
+        up, down = sorted(pair)
+        if up.leg != down.leg or down.module - up.module != 1:
+            continue  # a bypass: it carries states only while its chain wire is dead
+        if up.leg in chain:
+            return None
+        chain[up.leg] = down
+    dies = dict(failed_at or {})
+    out = ctrl.states(transitions, failed=list(chain.values()), failed_at=dies).astype(np.int64)
+    for down in chain.values():
+        upstream = [ModuleId(down.leg, j) for j in range(down.module)]
+        later = {m: t for m, t in dies.items() if m not in upstream}
+        alone = ctrl.states(transitions, failed=upstream, failed_at=later)
+        out[:, down.leg, down.module] = alone[:, down.leg, down.module]
+    return out
+
+
 def cut_reference(
     ctrl: Controller, transitions: int, cuts: Sequence[tuple[ModuleId, ModuleId]]
 ) -> np.ndarray:
     """CA: R^0..R^T when each end of a cut wire reads the other end's R^0 for ever (it never
     heard it: dead from power-up for that end only), every other neighbour as healthy: a
-    per-link view (``ca_sequences(views=)``) of the ends whose rule reads the other."""
+    per-link view of the ends whose rule reads the other."""
+    held = [(r, s, 0) for a, b in cuts for r, s in ((a, b), (b, a))]
+    return held_link_reference(ctrl, transitions, held)
+
+
+def held_link_reference(
+    ctrl: Controller, transitions: int, held: Sequence[tuple[ModuleId, ModuleId, int]]
+) -> np.ndarray:
+    """CA: R^0..R^T when each reader of ``held`` (reader, source, W) reads, from the rule step
+    of transition W on (the one computing R^(W+1)), the source's state of W - 1 (W = 0: R^0)
+    instead of its own: the state it last got before the wire went silent for it (it waited in
+    W, then held the source dead). Every other neighbour reads as healthy. Readers whose rule
+    does not read the source are left out."""
     from bstool.controllers.reference import ca_neighbours
     from bstool.controllers.sequences import ca_sequences
 
     n, m = ctrl.legs, ctrl.modules
-    r0 = ctrl.initial_states
-    views = {}
-    for a, b in cuts:
-        for reader, source in (((a.leg, a.module), (b.leg, b.module)),
-                               ((b.leg, b.module), (a.leg, a.module))):  # fmt: skip
-            if source in ca_neighbours(ctrl.model, n, m, *reader):
-                views[reader, source] = int(r0[source])
+    reads = [(r, s, w) for r, s, w in held
+             if (s.leg, s.module) in ca_neighbours(ctrl.model, n, m, r.leg, r.module)]  # fmt: skip
     rules = ctrl.rules()
-    seq = ca_sequences(ctrl.model, r0[None], rules[None] if ctrl.model == "ca2ddiff" else rules,
-                       transitions, (), views)  # fmt: skip
-    return seq[0].astype(np.int64)
+    rules = rules[None] if ctrl.model == "ca2ddiff" else rules
+    out = np.empty((transitions + 1, n, m), dtype=np.int64)
+    out[0] = ctrl.initial_states
+    for t in range(transitions):
+        views = {((r.leg, r.module), (s.leg, s.module)): int(out[max(w - 1, 0), s.leg, s.module])
+                 for r, s, w in reads if t >= w}  # fmt: skip
+        step = ca_sequences(ctrl.model, out[t][None], rules, 1, (), views)
+        out[t + 1] = step[0, 1].reshape(n, m)
+    return out
+
+
+def timed_cut_holds(
+    twin: RobotTwin, cuts_at: Mapping[frozenset[ModuleId], float]
+) -> list[tuple[ModuleId, ModuleId, int]]:
+    """CA: for wires cut (or gone one-way) at S seconds in a running robot, (reader, source,
+    W) of each end: W is the transition the reader waited in after S (the one it showed at S
+    or the next, whichever lasted longer: :func:`_wait`), read from its record."""
+    out = []
+    for pair, at_s in cuts_at.items():
+        a, b = sorted(pair)
+        for reader, source in ((a, b), (b, a)):
+            w = _longest_after(twin.records[reader].times_ns, at_s)
+            if w is not None:
+                out.append((reader, source, w))
+    return out
+
+
+def _longest_after(times_ns: list[int], at_s: float, span: int = 3) -> int | None:
+    """The transition, of the one shown at ``at_s`` and the ``span`` - 1 after it, that lasted
+    longest after ``at_s``: the reader's wait for the dead-limit (>= 1.5 s) against ordinary
+    transitions. Three, not two as for an outage: on a one-way wire the reader may still get
+    the state of the transition after the one it showed (its answer, not the request, is lost)."""
+    at = at_s * NS
+    shown = [i for i, t in enumerate(times_ns) if 0 <= t <= at]
+    if not shown:
+        return None
+    s = shown[-1]
+
+    def lasted(w: int) -> float:
+        end = times_ns[w + 1] if w + 1 < len(times_ns) and times_ns[w + 1] >= 0 else math.inf
+        return end - max(times_ns[w], at) if w < len(times_ns) else -math.inf
+
+    return max(range(s, s + span), key=lasted)
 
 
 __all__ = [
@@ -399,9 +479,12 @@ __all__ = [
     "compared_record",
     "compared_states",
     "cut_reference",
+    "held_link_reference",
     "nn_cut_failures",
+    "nn_power_up_cut_reference",
     "outage_reference",
     "outages",
     "readers",
+    "timed_cut_holds",
     "unshown",
 ]

@@ -246,6 +246,7 @@ class PerturbRun:
         stamp.wait = None
         stamp.brk = True
         twin.servos[mid].limp = True  # no pulses: the servo stops driving
+        twin.servos[mid].powered_off = True  # its next pulse ends an outage, not a servo gap
         twin._killed = True  # the scheduler re-reads the stamps
         self.offs.setdefault(mid, []).append(t_ns / NS)
         self.off_stamps[mid] = stamp

@@ -27,7 +27,14 @@ from hil_mock.perturb import Perturbation, PerturbRun
 from hil_mock.schedule import CHUNK_STEPS, Scheduler, advance_globally
 from hil_mock.stamp import Stamp, StampIO
 from hil_mock.stamp.clock import NOMINAL
-from hil_mock.twin_result import NS, OFF_STATE, ModuleRecord, TwinResult, ram_reader
+from hil_mock.twin_result import (
+    NS,
+    OFF_STATE,
+    ModuleRecord,
+    TwinResult,
+    ram_reader,
+    running_periods,
+)
 
 __all__ = [
     "CHUNK_STEPS",
@@ -83,10 +90,11 @@ class RobotTwin(Body, Links, Faults, Scheduler):
     they die during the run: the stamp stops for good once it has shown S^T on its servo and sent
     S^T to its neighbours (:meth:`_dies_at_pulse`, docs/twin.md); its servo then holds S^T (limp
     with ``limp_failed``). ``cut`` removes links; ``cut_at`` cuts them at a virtual time (s:
-    no byte starting then or later crosses). ``noise`` is the chance that a byte on a link is
-    hit (half of the hits drop it, half flip one bit), drawn from ``seed``.
-    ``timing``: the stamps' nominal timing model (a measured ``bstool.timing/1`` file's;
-    default: the estimate), under ``perturb``'s per-module factors.
+    no byte starting then or later crosses); ``one_way`` maps (A, B) to a virtual time (s, 0:
+    from power-up) from which A's bytes to B are lost while B's reach A. ``noise`` is the chance
+    that a byte on a link is hit (half of the hits drop it, half flip one bit), drawn from
+    ``seed``. ``timing``: the stamps' nominal timing model (a measured ``bstool.timing/1``
+    file's; default: the estimate), under ``perturb``'s per-module factors.
     """
 
     def __init__(
@@ -99,6 +107,7 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         limp_failed: bool = False,
         cut: Iterable[tuple[ModuleId, ModuleId]] = (),
         cut_at: Mapping[tuple[ModuleId, ModuleId], float] | None = None,
+        one_way: Mapping[tuple[ModuleId, ModuleId], float] | None = None,
         noise: float = 0.0,
         seed: int = 0,
         physics: bool = True,
@@ -124,9 +133,10 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         self._killed = False
         self._nn = build.manifest.controller.model.startswith("nn")
         cut = list(cut)
-        check_cuts(build, [*cut, *(cut_at or {})])
+        check_cuts(build, [*cut, *(cut_at or {}), *(one_way or {})])
         self.wires = wires(build, cut)
         self.cut_at_ns = {frozenset(ab): round(s * NS) for ab, s in (cut_at or {}).items()}
+        self.lost_ns = {(a, b): round(s * NS) for (a, b), s in (one_way or {}).items()}
         self.stamps: dict[ModuleId, Stamp] = {}
         self.records: dict[ModuleId, ModuleRecord] = {m: ModuleRecord() for m in self.order}
         self.servos: dict[ModuleId, ServoTrack] = {}
@@ -165,8 +175,11 @@ class RobotTwin(Body, Links, Faults, Scheduler):
         if self._dies_at_pulse(mid, self.stamps[mid], after=False):
             self._kill(mid, self.stamps[mid], start_ns)
             return
-        if servo.pulses:
+        if servo.pulses and servo.powered_off:  # across its own power-off: an outage, not a gap
+            servo.longest_outage_ns = max(servo.longest_outage_ns, start_ns - servo.last_pulse_ns)
+        elif servo.pulses:
             servo.longest_gap_ns = max(servo.longest_gap_ns, start_ns - servo.last_pulse_ns)
+        servo.powered_off = False
         servo.pulses += 1
         servo.last_pulse_ns = start_ns
         units = round(width_ns / 800)
@@ -310,7 +323,12 @@ class RobotTwin(Body, Links, Faults, Scheduler):
             if len(states[mid]) < transitions + 1:
                 stalled.append(mid)
         path = np.array(self.path[: transitions + 1], dtype=float).reshape(-1, 2)
+        running = {m: self.records[m].times_ns for m in self.order if m in self.stamps}
+        moving_s, running_p = running_periods(running, transitions)
         gaps = {mid: s.longest_gap_ns / NS for mid, s in self.servos.items() if mid in self.ran}
+        outages = {
+            m: s.longest_outage_ns / NS for m, s in self.servos.items() if s.longest_outage_ns
+        }
         announcements = {
             mid: announce.first_line(bytes(stamp.debug)) for mid, stamp in self.ran.items()
         }
@@ -323,6 +341,9 @@ class RobotTwin(Body, Links, Faults, Scheduler):
             announcements=announcements,
             virtual_seconds=self.t_ns / NS,
             instructions=sum(s.instructions for s in self.ran.values()),
+            moving_s=moving_s,
+            running_periods=running_p,
+            servo_outages=outages,
         )
 
 

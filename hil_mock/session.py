@@ -19,10 +19,19 @@ from bstool.errors import DeviceError, InputError
 from bstool.moduleid import ModuleId
 from bstool.timingfile import TimingModel
 from hil_mock.check import TwinCheck, check, reference_simulator
-from hil_mock.outage import Outage, cut_reference, nn_cut_failures, outage_reference, outages
+from hil_mock.outage import (
+    Outage,
+    held_link_reference,
+    nn_cut_failures,
+    nn_power_up_cut_reference,
+    outage_reference,
+    outages,
+    timed_cut_holds,
+)
 from hil_mock.perturb import Perturbation
 from hil_mock.robot import CHUNK_STEPS, RobotTwin
 from hil_mock.schedule_extract import Recorder, stamp_timed_simulator
+from hil_mock.stamp.clock import UART_TOLERANCE
 from hil_mock.twin_result import TwinResult
 
 
@@ -38,6 +47,8 @@ class TwinOptions:
     limp_failed: bool = False
     cut: Sequence[tuple[ModuleId, ModuleId]] = ()
     cut_at: Mapping[tuple[ModuleId, ModuleId], float] = field(default_factory=dict)  # s
+    # one-way wires: (A, B) -> S: A's bytes to B lost from S seconds (0: from power-up)
+    one_way: Mapping[tuple[ModuleId, ModuleId], float] = field(default_factory=dict)
     noise: float = 0.0
     seed: int = 0
     physics: bool = True
@@ -109,6 +120,7 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
             limp_failed=options.limp_failed,
             cut=options.cut,
             cut_at=options.cut_at,
+            one_way=options.one_way,
             noise=options.noise,
             seed=options.seed,
             physics=options.physics,
@@ -122,8 +134,8 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         if fleet is not None:
             fleet.close()
     outs = outages(twin)
-    cut_dies = nn_cut_failures(twin) if ctrl is not None and twin._nn else {}
-    reference = _reference(ctrl, options, outs, cut_dies) if ctrl is not None else None
+    links = LinkFaults.of(twin, options)
+    reference, cut_notes = _reference(ctrl, options, outs, twin, links) if ctrl else (None, [])
     sim_distance = None
     stamp_path = None
     if reference is not None and options.physics:
@@ -143,18 +155,9 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
         outages=outs,
     )
     report.notes += outage_notes(outs)
-    if options.cut and reference is not None:
-        report.notes.append(_cut_note(ctrl, options, outs))
-    if options.cut_at and reference is not None:
-        timed = ", ".join(f"{a.label}-{b.label} at {s:g} s" for (a, b), s in options.cut_at.items())
-        how = (
-            "its downstream end compared as dying at the last transition it took ("
-            + ", ".join(f"--die {m.label}@{t}" for m, t in cut_dies.items())
-            + ")"
-            if cut_dies
-            else "compared with the reference without the cut (none describes it here)"
-        )
-        report.notes.append(f'cut {timed}: {how}; docs/twin.md "A wire cut in a running robot"')
+    report.notes += links.notes()
+    if reference is not None:
+        report.notes += cut_notes
     if limited:
         report.notes.append(
             "modules after two neighbouring dead NN modules ("
@@ -176,29 +179,138 @@ def run_twin(build: Build, options: TwinOptions) -> TwinReport:
     )
 
 
+@dataclass(frozen=True)
+class LinkFaults:
+    """The run's wire faults as the reference sees them: wires silent from power-up (``--cut
+    A-B``, a one-way wire ``A>B``, a wire whose two clocks are further apart than the serial
+    link tolerates) and wires gone silent in a running robot (``A-B@S``, ``A>B@S``), each pair
+    with S. A one-way wire counts as cut: the link falls back to what a cut does
+    (protocol/link.md §4.5, one-way)."""
+
+    power_up: tuple[frozenset[ModuleId], ...]
+    timed: dict[frozenset[ModuleId], float]
+    one_way: dict[tuple[ModuleId, ModuleId], float]
+    clocks: dict[tuple[ModuleId, ModuleId], float]  # (A, B): B's bit time / A's (A's bytes lost)
+
+    @classmethod
+    def of(cls, twin: RobotTwin, options: TwinOptions) -> LinkFaults:
+        clocks = clock_mismatches(twin)
+        power_up = {frozenset(c) for c in options.cut}
+        power_up |= {frozenset(ab) for ab, s in options.one_way.items() if s <= 0}
+        power_up |= {frozenset(ab) for ab in clocks}
+        timed = {frozenset(ab): s for ab, s in options.cut_at.items()}
+        timed.update({frozenset(ab): s for ab, s in options.one_way.items() if s > 0})
+        for pair in power_up:
+            timed.pop(pair, None)
+        return cls(tuple(sorted(power_up, key=sorted)), timed, dict(options.one_way), clocks)
+
+    def __bool__(self) -> bool:
+        return bool(self.power_up or self.timed)
+
+    def notes(self) -> list[str]:
+        out = []
+        for (a, b), s in self.one_way.items():
+            when = "from power-up" if s <= 0 else f"from {s:g} s"
+            out.append(f"one-way wire {a.label}>{b.label} {when}: {a.label}'s bytes to "
+                       f"{b.label} are lost, {b.label}'s reach {a.label}; each end falls back "
+                       "to what a cut wire does and it is compared as one")  # fmt: skip
+        for (a, b), ratio in self.clocks.items():
+            out.append(f"wire {a.label}-{b.label}: the two clocks are {abs(ratio - 1) * 100:.2f} % "
+                       f"apart ({b.label}'s bit time {ratio:.4f} x {a.label}'s), beyond the "
+                       f"serial link's {UART_TOLERANCE * 100:g} % tolerance: {a.label}'s bytes "
+                       f"to {b.label} are lost; compared as a one-way wire "
+                       f"{a.label}>{b.label} from power-up")  # fmt: skip
+        return out
+
+
+def clock_mismatches(twin: RobotTwin) -> dict[tuple[ModuleId, ModuleId], float]:
+    """(A, B) -> B's bit time over A's for every wired pair whose resonators are further apart
+    than the UART tolerance in that direction (A's bytes to B are lost: the twin's UART model,
+    docs/twin.md "Perturbations")."""
+    draws = twin.perturb.draws
+    out = {}
+    for w in twin.build.manifest.links:
+        for a, b in ((w.master, w.slave), (w.slave, w.master)):
+            if a in draws and b in draws:
+                ratio = draws[b].resonator / draws[a].resonator
+                if abs(ratio - 1.0) > UART_TOLERANCE:
+                    out[a, b] = ratio
+    return out
+
+
 def _reference(
-    ctrl: Controller, options: TwinOptions, outs: list[Outage], cut_dies: Mapping[ModuleId, int]
-) -> np.ndarray:
-    """``bstool states`` with the run's failures and long outages; a CA run whose only fault is
-    ``--cut`` is compared with each end reading the other's R^0 (:func:`cut_reference`); an NN
-    chain wire cut in a running robot as its downstream end dying (:func:`nn_cut_failures`)."""
+    ctrl: Controller, options: TwinOptions, outs: list[Outage], twin: RobotTwin, links: LinkFaults
+) -> tuple[np.ndarray, list[str]]:
+    """``bstool states`` with the run's failures and long outages, and the notes that say how
+    the wire faults were compared. Wire faults alone (docs/twin.md "--cut"): CA, each end of a
+    wire silent from power-up reads the other's R^0, of one silent from S the last state it got
+    (from the record: :func:`hil_mock.outage.timed_cut_holds`); NN, a chain wire silent from
+    power-up as ``--fail B`` with B as its upstream failed, one silent from S as B dying at the
+    last transition it took (:func:`nn_cut_failures`); a cut bypass changes nothing."""
     from bstool.controllers import NN_MODELS
 
     faults = options.failed or options.die or any(o.long for o in outs)
-    if options.cut and ctrl.model not in NN_MODELS and not faults:
-        return cut_reference(ctrl, options.transitions, list(options.cut))
-    die = {**cut_dies, **options.die}
-    return outage_reference(ctrl, options.transitions, outs, options.failed, die)
+    nn = ctrl.model in NN_MODELS
+    dies = nn_cut_failures(twin, links.timed) if nn else {}
+    if links and not faults:
+        if nn:
+            ref = nn_power_up_cut_reference(ctrl, options.transitions, links.power_up, dies)
+            if ref is not None:
+                return ref, _cut_notes(links, nn, dies)
+        else:
+            holds = [(r, s, 0) for pair in links.power_up for r, s in _ends(pair)]
+            holds += timed_cut_holds(twin, links.timed)
+            return held_link_reference(ctrl, options.transitions, holds), _cut_notes(
+                links, nn, {}, holds
+            )
+    ref = outage_reference(ctrl, options.transitions, outs, options.failed, {**dies, **options.die})
+    none = "compared with the reference without the cut (none describes it here)"
+    return ref, [f"{_wires(links)}: {none}"] if links else []
 
 
-def _cut_note(ctrl: Controller | None, options: TwinOptions, outs: list[Outage]) -> str:
-    cuts = ", ".join(f"{a.label}-{b.label}" for a, b in options.cut)
-    from bstool.controllers import NN_MODELS
+def _ends(pair: frozenset[ModuleId]) -> list[tuple[ModuleId, ModuleId]]:
+    a, b = sorted(pair)
+    return [(a, b), (b, a)]
 
-    faults = options.failed or options.die or any(o.long for o in outs)
-    if ctrl is not None and ctrl.model not in NN_MODELS and not faults:
-        return f"cut {cuts}: compared with each end reading the other's R^0 for ever"
-    return f"cut {cuts}: compared with the reference without the cut (none describes it here)"
+
+def _wires(links: LinkFaults) -> str:
+    parts = ["-".join(m.label for m in sorted(p)) for p in links.power_up]
+    parts += ["-".join(m.label for m in sorted(p)) + f" at {s:g} s" for p, s in links.timed.items()]
+    return "cut " + ", ".join(parts)
+
+
+def _cut_notes(
+    links: LinkFaults,
+    nn: bool,
+    dies: Mapping[ModuleId, int],
+    holds: Sequence[tuple[ModuleId, ModuleId, int]] = (),
+) -> list[str]:
+    out = []
+    if links.power_up:
+        wires = ", ".join("-".join(m.label for m in sorted(p)) for p in links.power_up)
+        how = ("each cut chain wire's downstream end B as its leg's upstream failed and every "
+               "other module as `--fail B` (a cut bypass changes nothing)" if nn
+               else "each end reading the other's R^0 for ever")  # fmt: skip
+        out.append(f"cut {wires} (silent from power-up): compared with {how}")
+    if links.timed:
+        wires = ", ".join("-".join(m.label for m in sorted(p)) + f" at {s:g} s"
+                          for p, s in links.timed.items())  # fmt: skip
+        if nn:
+            how = ("its downstream end compared as dying at the last transition it took ("
+                   + ", ".join(f"--die {m.label}@{t}" for m, t in dies.items()) + ")"
+                   if dies else "a cut bypass changes nothing (the healthy reference)")  # fmt: skip
+        else:
+            timed = [(r, s, w) for r, s, w in holds if w > 0]
+            how = (
+                "each end reading the last state it got from the other ("
+                + ", ".join(
+                    f"{r.label} reads {s.label}'s S^{w - 1} from transition {w}"
+                    for r, s, w in timed
+                )
+                + ", read from the record)"
+            )
+        out.append(f'cut {wires}: {how}; docs/twin.md "A wire cut in a running robot"')
+    return out
 
 
 def outage_notes(outs: list[Outage]) -> list[str]:

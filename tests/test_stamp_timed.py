@@ -145,27 +145,42 @@ def test_the_twin_moves_as_the_stamp_timed_simulator(
 @pytest.mark.slow
 @pytest.mark.parametrize("model", CA_MODELS)
 def test_schedule_model_follows_a_real_build(model: str, tmp_path: Path) -> None:
-    """A random controller (not a representative): the fitted model's instants against its
-    build's, and the model-timed distance of a shipped controller against the build-timed.
+    """Random controllers (not representatives): the fitted model's instants against their
+    builds', and the model-timed distance of a shipped controller against the build-timed.
     Holds since the keep-alives carry the hold clock (protocol/link.md §4.2): before, a 2-D
-    build's phase pattern was its own (skew 0.5-0.6 s) and this failed for every model."""
+    build's phase pattern was its own (skew 0.5-0.6 s) and this failed for every model.
+
+    The limits hold for the median of five builds, not for each: a 2-D build now and then has
+    a *lead-ring lock* (two leads that lack each other's state serve their rounds in step, the
+    master's asks falling just outside the slave's listens for 0.3-0.6 s; the hold clock
+    carries the delay to every module), which no schedule model predicts: measured on 30
+    random ca2dsing builds each (T = 10, 2026-12-05), 6 of 30 failed these limits with the
+    programs of 2026-12-04 and 7 of 30 with those of issue 28 §2, every lock on a lead-lead
+    wire (docs/twin.md "For evolution"). The single build this test used (seed 9) passed
+    before and locks since."""
     from hil_mock.schedule_extract import simulate_build
     from hil_mock.schedule_model import schedule_model, transition_instants
 
     fitted = schedule_model(model)
     T = 10
-    build = buildfile.load(_random_build(model, 9, tmp_path))
-    real, _ = transition_instants(build, T)
     want = fitted.instants(T).T  # (A, T + 2), on the grid
-    err = real[:, 1 : T + 1] - want[:, 1 : T + 1]
-    # the robot's pace: a build's period is within ~2 % of the model's (measured 1.0-2.2 %)
     elapsed = want[:, 1 : T + 1].mean(axis=0)
-    assert np.max(np.abs(err.mean(axis=0)) / elapsed) < 0.03
-    # the phase pattern (each module against the robot's mean): jitter of a few tries,
-    # measured 0.02-0.03 s on average, at most 0.16 s
-    pattern = err - err.mean(axis=0)
-    assert np.mean(np.abs(pattern)) < 0.04 and np.max(np.abs(pattern)) < 0.25
-    assert np.max(np.abs(real[:, 0] - want[:, 0])) <= 0.01  # power-up drive
+    pace, mean_pattern, max_pattern, drive = [], [], [], []
+    for seed in range(9, 14):
+        build = buildfile.load(_random_build(model, seed, tmp_path))
+        real, _ = transition_instants(build, T)
+        err = real[:, 1 : T + 1] - want[:, 1 : T + 1]
+        pace.append(np.max(np.abs(err.mean(axis=0)) / elapsed))
+        pattern = err - err.mean(axis=0)  # each module against the robot's mean
+        mean_pattern.append(np.mean(np.abs(pattern)))
+        max_pattern.append(np.max(np.abs(pattern)))
+        drive.append(np.max(np.abs(real[:, 0] - want[:, 0])))
+    seen = f"pace {pace}, pattern {mean_pattern} / {max_pattern}"
+    # the robot's pace: a build's period is within ~2 % of the model's (measured 1.0-2.2 %)
+    assert np.median(pace) < 0.03, seen
+    # the phase pattern: jitter of a few tries, measured 0.02-0.03 s on average, at most 0.16 s
+    assert np.median(mean_pattern) < 0.04 and np.median(max_pattern) < 0.25, seen
+    assert max(drive) <= 0.01  # power-up drive
 
     shipped = buildfile.load(_copy_shipped(model, tmp_path))
     by_build, _, _ = simulate_build(shipped, T)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from typing import TYPE_CHECKING
 
@@ -44,9 +45,10 @@ if TYPE_CHECKING:
 @click.option(
     "--cut",
     multiple=True,
-    metavar="A-B[@S]",
+    metavar="A-B[@S] | A>B[@S]",
     help="Cut the link between modules A and B (e.g. 0.1-0.2) from power-up, or from S "
-    "seconds of virtual time (0.1-0.2@3.5: a wire coming loose in a running robot); "
+    "seconds of virtual time (0.1-0.2@3.5: a wire coming loose in a running robot); A>B: a "
+    "one-way wire, A's bytes to B are lost and B's reach A (a broken receive line at B); "
     "repeatable.",
 )
 @click.option(
@@ -140,8 +142,9 @@ def command(
     fail_ids = [parse_module(f, b.legs, b.modules) for f in failed]
     die_at = dict(parse_failure_time(d, b.legs, b.modules) for d in die)
     parsed = [_parse_cut(c, b.legs, b.modules) for c in cut]
-    cuts = [(x, y) for x, y, at in parsed if at is None]
-    cut_at = {(x, y): at for x, y, at in parsed if at is not None}
+    cuts = [(x, y) for x, y, at, one in parsed if at is None and not one]
+    cut_at = {(x, y): at for x, y, at, one in parsed if at is not None and not one}
+    one_way = {(x, y): at or 0.0 for x, y, at, one in parsed if one}
     with tqdm(total=transitions + 1, unit="transition", disable=quiet or as_json or None,
               desc="twin", file=sys.stderr) as bar:  # fmt: skip
         options = TwinOptions(
@@ -151,6 +154,7 @@ def command(
             limp_failed=limp_failed,
             cut=cuts,
             cut_at=cut_at,
+            one_way=one_way,
             noise=link_noise,
             seed=seed,
             physics=not no_physics,
@@ -185,10 +189,12 @@ def _controller(given: str | None) -> Controller | None:
     return load_controller(given) if given else None
 
 
-def _parse_cut(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId, float | None]:
-    """``A-B`` (from power-up) or ``A-B@S`` (from S seconds of virtual time)."""
+def _parse_cut(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId, float | None, bool]:
+    """``A-B`` (from power-up), ``A-B@S`` (from S seconds of virtual time), ``A>B`` or
+    ``A>B@S`` (one-way: A's bytes to B lost): (A, B, S or None, one-way)."""
     pair, sep, when = text.partition("@")
-    parts = pair.split("-")
+    one_way = ">" in pair
+    parts = pair.split(">" if one_way else "-")
     at: float | None = None
     if sep:
         try:
@@ -197,10 +203,12 @@ def _parse_cut(text: str, legs: int, modules: int) -> tuple[ModuleId, ModuleId, 
             at = -1.0
     if len(parts) != 2 or (at is not None and not 0.0 <= at < 1e6):
         raise InputError(
-            f"bad --cut {text!r}: expected A-B or A-B@S, e.g. 0.1-0.2 or 0.1-0.2@3.5 "
-            "(S: seconds of virtual time, >= 0)"
+            f"bad --cut {text!r}: expected A-B, A-B@S, A>B or A>B@S",
+            hint="e.g. 0.1-0.2 (cut from power-up), 0.1-0.2@3.5 (from 3.5 s of virtual time), "
+            "0.1>0.2 (one-way: 0.1's bytes to 0.2 are lost); S: seconds, >= 0",
         )
-    return parse_module(parts[0], legs, modules), parse_module(parts[1], legs, modules), at
+    a, b = (parse_module(x.strip(), legs, modules) for x in parts)
+    return a, b, at, one_way
 
 
 def _print(report: TwinCheck, result: TwinResult) -> None:
@@ -229,8 +237,13 @@ def _print(report: TwinCheck, result: TwinResult) -> None:
         click.echo(f"period:     not measured: no module made two transitions {estimates}")
     else:
         click.echo(f"period:     {report.period_mean:.3f} s ± {report.period_std:.3f} {estimates}")
+    if math.isfinite(report.moving_s):
+        click.echo(f"start-up:   every module moving at {report.moving_s:.2f} s (the period "
+                   "counts the transitions from there)")  # fmt: skip
     click.echo(f"servo gaps: longest {report.servo_gap_max * 1000:.1f} ms "
                f"(manifest estimate {report.servo_gap_estimate * 1000:.1f} ms)")  # fmt: skip
+    for mid, off in report.servo_outages.items():
+        click.echo(f"            {mid} without pulses for {off:.2f} s across its own power-off")
     click.echo(f"stalled:    {', '.join(map(str, report.stalled)) or 'none'}")
     click.echo(
         f"announced:  {'all modules as expected' if report.announcements_ok else 'MISMATCH'}"

@@ -276,6 +276,8 @@ def _longest_gap_ms(plan: ModulePlan) -> float:
     for ll in plan.links:
         if ll.master:
             gaps.append(t.master_gap_ms(ll.tx_payload, ll.rx_payload, k, nn=nn))
+            if not nn:  # line noise: the REP's payload lost, PayloadWait in the gap
+                gaps.append(t.lost_payload_gap_ms(ll.tx_payload, k))
         else:
             longest = max(plan.pulses) * t.pulsout_unit_ms  # the master's pulse, about ours
             gaps.append(t.slave_receive_gap_ms(ll.rx_payload, k, nn=nn, master_pulse_ms=longest))

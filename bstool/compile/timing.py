@@ -58,6 +58,19 @@ tick's bookkeeping and the skipped keep-alives (fitted with CA_EXCHANGE_ROUNDS: 
 GAP_STATEMENTS = 20
 """The statements between tries that the try counts above leave out (the tick bookkeeping,
 jumps between wires); calibrated on the twin's interpreter (docs/compile.md)."""
+SERVO_HOLDS_MS = 50
+"""An analog hobby servo (the Futaba S5301 is one; no datasheet of its own found) holds its
+position while pulses come at most this far apart and relaxes after it (Parallax forum thread
+90233: repetition 20-50 ms, "after 50 mSec of no pulse seen, the servo relaxes"; MicroPython
+wiki "Servos": analog servos need 20-65 updates a second). Up to 25 ms (40 Hz) the refresh rate
+makes no difference at all (owiki "Servo control"). docs/compile.md "Servo gaps"."""
+SERVO_NEUTRAL_MS = 25
+CA_LOST_STATEMENTS = 50
+"""CA: a master's try whose REP header came at the end of the reply wait and whose payload
+was lost (line noise): from its pulse, besides the REQ, the wait, the header and PayloadWait:
+the pulse itself, the round's checks (Due, the next wire's keep-alive test) and the next try's
+statements before its pulse (Age, Encode); calibrated on the twin (25.1 ms measured on the
+2-D leads with 1 % noise, docs/compile.md "Servo gaps"), so the bound covers it."""
 NN_STORE_STATEMENTS = 4
 """NN: a slave between the packed states and the pulse before TOOK, besides one store per
 state and one fold statement per byte: the check's test, the joining test (protocol/link.md
@@ -211,6 +224,18 @@ class CompileTiming:
             + self.statements(
                 TURNAROUND_STATEMENTS + NN_STORE_STATEMENTS + packed_bytes(rx) + rx + GAP_STATEMENTS
             ),
+        )
+
+    def lost_payload_gap_ms(self, tx: int, k: ServeConstants) -> float:
+        """CA: a master's longest time between two pulses when the REP's payload is lost: its
+        REQ, the longest reply wait, the REP header at its end, PayloadWait, then the
+        statements to the next try's pulse (:data:`CA_LOST_STATEMENTS`)."""
+        return (
+            frame_ms(1 + tx, k)
+            + self.wait_ms(k.reply_wait + k.jitter_units)
+            + frame_ms(1, k)
+            + self.wait_ms(k.payload_wait)
+            + self.statements(CA_LOST_STATEMENTS)
         )
 
     def master_gap_ms(self, tx: int, rx: int, k: ServeConstants, *, nn: bool) -> float:

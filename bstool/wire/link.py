@@ -76,7 +76,7 @@ NN = ServeConstants(
     hold_frames=4,  # the floor: a build derives HoldFrames from --period
     reply_wait=16,  # as CA
     listen=22,  # as CA
-    payload_wait=25,  # 10 ms: the one byte after a JOIN or WELCOME header, generous (rare frames)
+    payload_wait=8,  # 3.2 ms as CA: the byte after a JOIN or WELCOME header (10 ms: a 28 ms gap)
     pace_ms=2,  # as CA
     dead_limit_ms=1500,  # DeadTicks = 15 ticks of 100 ms
     power_up_window_ms=4500,  # JoinTicks = 45 ticks of 100 ms
