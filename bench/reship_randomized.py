@@ -79,6 +79,8 @@ def evolve_one(out: Path, model: str, seed: int, kind: str, args: argparse.Names
     more: dict[str, Any] = {}
     if kind == "rand":
         more = {"randomize": True, "randomize_samples": args.samples}
+    if args.init_shipped:
+        more["init"] = builtin_controller(model)
     start = time.perf_counter()
     driver.evolve(
         model,
@@ -157,6 +159,11 @@ def main() -> None:
     ap.add_argument("--ca2ddiff-gens", type=int, default=None, help="ca2ddiff outer loops")
     ap.add_argument("--coevol-gens", type=int, default=None, help="ca2ddiff co-evolution gens")
     ap.add_argument("--no-shipped", action="store_true", help="do not measure the shipped gait")
+    ap.add_argument(
+        "--init-shipped",
+        action="store_true",
+        help="start every run from the shipped gait (evolve --init)",
+    )
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in args.seeds.split(",")]

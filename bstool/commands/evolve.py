@@ -154,6 +154,9 @@ _D = opt.default
               help="--randomize: the physics step of the training draws (validation and best.json "
               "stay at the robot's timestep; docs/robot.md 'Timestep fidelity'; the robot's "
               "step or finer: train at the robot's)  [default: 0.003]")  # fmt: skip
+@click.option("--init", type=click.Path(dir_okay=False), metavar="C.json",
+              help="Start from this controller of MODEL instead of a random population: row 0 "
+              "is it, the others copies mutated with P_M (recorded: file, hash).")  # fmt: skip
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 @click.pass_context
 def command(
@@ -190,6 +193,8 @@ def command(
         if force:
             raise InputError("--force only applies to a new run (--out DIR)")
         given.pop("period", None)
+        if given.pop("init", None) is not None:
+            raise InputError("--init only applies to a new run", hint="drop --init with --resume")
         extra = _randomize_given(given)
         plan = plan_resume(resume, {**given, **extra, "model": model})  # --timing: by sha256
     else:
@@ -202,11 +207,13 @@ def command(
         timing = given.pop("timing", None)
         builds = given.pop("schedule_builds", None)
         robot = given.pop("robot", None)
+        init = given.pop("init", None)
         randomize = {k: given.pop(k, None) for k in _RANDOMIZE_OPTIONS}
         plan = plan_new(model, opt.ga_params(model, **given), fitness=fitness, out=out,
                         force=force, stamp_timed=stamp_timed, period=period,
                         timing=timing, schedule_builds=builds, robot=robot,
-                        randomize=bool(randomize.pop("randomize")), **randomize)  # fmt: skip
+                        randomize=bool(randomize.pop("randomize")), init=init,
+                        **randomize)  # fmt: skip
     _run(plan, workers, cluster, quiet)
 
 

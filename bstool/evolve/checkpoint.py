@@ -92,7 +92,7 @@ def save_outputs(state: RunState, out: str | os.PathLike[str], extra: dict[str, 
     save_checkpoint(state, d / CHECKPOINT, extra)
 
 
-EVALUATION_KEYS = ("stamp_timed", "period", "timing", "schedule_builds", "randomize")
+EVALUATION_KEYS = ("stamp_timed", "period", "timing", "schedule_builds", "randomize", "init")
 """The run's evaluation settings (``extra``) that best.json's ``ga`` also records."""
 
 

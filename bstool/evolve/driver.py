@@ -193,6 +193,7 @@ def plan_new(
     validate_every: int | None = None,
     validation_samples: int | None = None,
     train_timestep: float | None = None,
+    init: str | os.PathLike[str] | None = None,
 ) -> Plan:
     """A new run, checked; ``robot``: a robot file (or ``bstool.robot.robotfile.Robot``),
     recorded by value; ``randomize``: score on random robots (docs/evolution.md)."""
@@ -216,7 +217,19 @@ def plan_new(
     directory, replace = (None, False) if out is None else check_out(out, force=force)
     problem = Problem(opt.check_model(model), transitions=params.transitions)
     file = None if timing is None else str(timing)
-    state = new_run(problem, params)
+    start = None
+    if init is not None:
+        from bstool.controllers import load_controller
+
+        ctrl = load_controller(init)
+        if ctrl.model != problem.model:
+            raise InputError(
+                f"--init {init} is a {ctrl.model} controller, not {problem.model}",
+                hint=f"give a {problem.model} controller, or evolve {ctrl.model}",
+            )
+        start = problem.chromosomes(ctrl)
+        extra["init"] = {"file": str(init), "controller_hash": ctrl.hash()}
+    state = new_run(problem, params, start)
     state.robot = loaded
     if "randomize" in extra:
         state.randomize = Randomize.from_json(extra["randomize"])
@@ -425,6 +438,7 @@ def evolve(
     validate_every: int | None = None,
     validation_samples: int | None = None,
     train_timestep: float | None = None,
+    init: str | os.PathLike[str] | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
 
@@ -464,7 +478,7 @@ def evolve(
         period=period, timing=timing, schedule_builds=schedule_builds, robot=robot,
         randomize=randomize, randomize_samples=randomize_samples,
         randomize_score=randomize_score, validate_every=validate_every,
-        validation_samples=validation_samples, train_timestep=train_timestep,
+        validation_samples=validation_samples, train_timestep=train_timestep, init=init,
     )  # fmt: skip
     return execute(
         plan,

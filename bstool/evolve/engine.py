@@ -17,7 +17,7 @@ import numpy as np
 from bstool.controllers import Controller
 from bstool.controllers.reference import NN_MODELS
 from bstool.evolve.fitness import Evaluator, FitnessCache
-from bstool.evolve.ga import Bits, best_index, clean_fitness, next_generation
+from bstool.evolve.ga import Bits, best_index, clean_fitness, mutate, next_generation
 from bstool.evolve.problem import Problem
 from bstool.evolve.randomize import (
     Randomize,
@@ -186,8 +186,12 @@ class RunState:
         }
 
 
-def new_run(problem: Problem, params: GAParams) -> RunState:
-    """Random initial population(s); for ca2ddiff the first 'best' control rule is a random one."""
+def new_run(problem: Problem, params: GAParams, init: Mapping[str, Bits] | None = None) -> RunState:
+    """Random initial population(s); for ca2ddiff the first 'best' control rule is a random one.
+
+    ``init`` (``evolve --init C.json``): a chromosome per population to start from instead:
+    row 0 is it, rows 1.. are copies of it mutated with the run's P_M (drawn after the random
+    population, whose draws are kept so the stream has one shape)."""
     if params.pop < 2:
         raise ValueError("population size must be at least 2")
     if params.robust is not None and params.robust not in ROBUST_MODES:
@@ -207,6 +211,13 @@ def new_run(problem: Problem, params: GAParams) -> RunState:
     if params.coevolve_faults:  # drawn last: a plain run's random stream is unchanged
         cells = problem.legs * problem.modules
         state.parasites = new_parasites(params.parasites, params.parasite_k, cells, rng)
+    if init is not None:  # after every other draw: a run without it is unchanged
+        for name in problem.populations:
+            row = np.asarray(init[name], dtype=np.uint8)
+            copies = np.repeat(row[None], params.pop - 1, axis=0)
+            state.populations[name] = np.concatenate([row[None], mutate(copies, params.pm, rng)])
+        if problem.model == "ca2ddiff":
+            state.best_of["control"] = np.asarray(init["control"], dtype=np.uint8).copy()
     return state
 
 

@@ -80,6 +80,26 @@ class Problem:
         initial, rule = ch.decode_ca(bits, self.legs, self.modules)
         return ca_sequences(self.model, initial, rule, T, failed)
 
+    def chromosomes(self, controller: Controller) -> dict[str, Bits]:
+        """The chromosome of each population that decodes to ``controller`` (the inverse of
+        :meth:`controller`): ``evolve --init`` starts from it."""
+        if (controller.model, controller.legs, controller.modules) != (
+            self.model, self.legs, self.modules
+        ):  # fmt: skip
+            raise ValueError(f"a {controller.model} controller for a {self.model} problem")
+        init = controller.initial_states[None]
+        if self.model in NN_MODELS:
+            assert controller.weights is not None
+            return {"main": ch.encode_nn(init[:, :, 0], controller.weights[None])[0]}
+        if self.model == "ca2ddiff":
+            assert controller.control_rule is not None and controller.leg_rule is not None
+            return {
+                "control": ch.encode_control(init[:, :, 0], controller.control_rule[None])[0],
+                "leg": ch.encode_leg(init[:, :, 1:], controller.leg_rule[None])[0],
+            }
+        assert controller.rule is not None
+        return {"main": ch.encode_ca(init, controller.rule[None])[0]}
+
     def controller(
         self, name: str, row: Bits, partner: Bits | None = None, **meta: Any
     ) -> Controller:
