@@ -343,3 +343,22 @@ def test_init_starts_from_a_controller(model: str, tmp_path: Path) -> None:
     toy = ToyEvaluator()([ctrl.states(30)])[0]
     result = driver.execute(plan)
     assert result.history[0].best >= toy - 1e-12
+
+
+@pytest.mark.slow
+def test_simulate_stamp_timed_replays_a_randomized_fitness(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`simulate --stamp-timed` gives a randomized run's fitness back to the bit: the mean over
+    its validation robots (its seed, its settings), with the nominal distance beside it."""
+    out = tmp_path / "run"
+    assert main(["evolve", "nnsig", "--pop", "3", "--gens", "1", "--seed", "5", "--stamp-timed",
+                 "--randomize", "--randomize-samples", "2", "--validation-samples", "4",
+                 "--out", str(out), "-q"]) == 0  # fmt: skip
+    capsys.readouterr()
+    best = json.loads((out / "best.json").read_text())
+    assert main(["simulate", str(out / "best.json"), "--stamp-timed", "--json", "-q"]) == 0
+    replay = json.loads(capsys.readouterr().out)
+    assert replay["fitness"] == best["fitness"]
+    assert replay["nominal_fitness"] == replay["distance"] != best["fitness"]
+    assert "4 validation robots" in replay["note"]

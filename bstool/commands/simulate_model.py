@@ -150,9 +150,39 @@ def run_model(
             f"{each} cm on the {builds} builds' patterns, mean {100 * out['fitness']:.2f} cm "
             "(the stamp-timed fitness; path and distance above: the first build's)"
         )
+    if ga.get("randomize"):
+        out["nominal_fitness"] = out["fitness"]
+        out["fitness"], count = validation_mean(ctrl, states, fitted, robot)
+        out["note"] = (
+            f"fitness: the mean over the run's {count} validation robots (--randomize; "
+            "the distance above is the nominal robot's)"
+        )
     if ga.get("robust") or ga.get("coevolve_faults"):
         out["note"] = (
             "this run's fitness was not a plain distance (--robust or --coevolve-faults), "
             "so it is not replayed here"
         )
     return result, out
+
+
+def validation_mean(ctrl: Controller, states: np.ndarray, fitted: ScheduleSource,
+                    spec: Any) -> tuple[float, int]:  # fmt: skip
+    """A randomized run's fitness, replayed: ``ctrl``'s mean distance over the run's
+    validation robots (its seed, its settings), as the run's validator measured it."""
+    from bstool.evolve.fitness import StampTimedFitness
+    from bstool.evolve.ga import clean_fitness
+    from bstool.evolve.randomize import Randomize, validation_robots
+    from bstool.robot.robotfile import Robot, from_record
+
+    ga = ctrl.ga if isinstance(ctrl.ga, dict) else {}
+    settings = Randomize.from_json(ga["randomize"])
+    robot = Robot() if ctrl.robot is None else from_record(ctrl.robot, "the controller")
+    robots = validation_robots(robot, settings, int(ctrl.seed or 0))
+    ev = StampTimedFitness(fitted, ctrl.legs, ctrl.modules, 2, spec).build()
+    try:
+        raw = ev([states] * len(robots), robot=robots)
+    finally:
+        close = getattr(ev, "close", None)
+        if close is not None:
+            close()
+    return float(np.mean(clean_fitness(raw))), len(robots)
