@@ -169,3 +169,22 @@ def test_the_report(folder: Path, cli: Any) -> None:
     changed = {k for k in after if after[k] != before[k]}
     assert changed == {k for k in after if k.startswith("analyses/ca1d-s2/")}
     assert (folder.parent / "elsewhere" / "index.html").is_file()
+
+
+@pytest.mark.slow
+def test_a_stamp_timed_runs_analyses_use_the_schedule_model_it_was_scored_on() -> None:
+    """--schedule-builds K: the analyses play the run on the ensemble of K builds it was scored
+    on (not the one averaged model), and the cache digest says so."""
+    import dataclasses
+
+    from bstool.builtin import builtin_controller
+    from bstool.campaign.analyses import evaluation
+    from bstool.commands.campaign import analysis_schedule
+    from bstool.controllers import load_controller
+
+    c = load_controller(builtin_controller("nnsig"))
+    ensemble = dataclasses.replace(c, ga={**(c.ga or {}), "schedule_builds": 2})
+    assert evaluation(c) == {"kind": "stamp-timed", "period": None}  # digests kept
+    assert evaluation(ensemble)["builds"] == 2
+    assert len(analysis_schedule(ensemble, None).variants) == 2
+    assert not getattr(analysis_schedule(c, None), "variants", ())

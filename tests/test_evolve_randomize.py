@@ -3,7 +3,6 @@ re-scored, validation, best.json, resume identical, and every scoring mode and b
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -17,7 +16,6 @@ from bstool.evolve import driver
 from bstool.evolve import options as opt
 from bstool.evolve.fitness import ToyEvaluator, sequence_key
 from bstool.evolve.randomize import Randomize, combine, training_robots, validation_robots
-from bstool.robot import RobotSpec
 from bstool.robot.robotfile import Robot
 
 TOY = ["--fitness", "toy", "-q"]
@@ -234,7 +232,17 @@ def test_option_mistakes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
         == 0
     )
     assert main(["evolve", "--resume", str(out), "--randomize-samples", "8", "-q"]) == 2
-    assert "a resumed run keeps its settings" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--randomize-samples is 8 but the run" in err and "with 4" in err
+    assert "a resumed run keeps its settings" in err
+    # an option typed with the run's own value is fine, whatever the others' defaults are now
+    odd = tmp_path / "odd"
+    assert main(["evolve", "ca1d", "--pop", "4", "--gens", "1", "--randomize",
+                 "--train-timestep", "0.002", "--out", str(odd), *TOY]) == 0  # fmt: skip
+    assert main(["evolve", "--resume", str(odd), "--randomize-samples", "4", "--gens", "2",
+                 "-q"]) == 0  # fmt: skip
+    assert main(["evolve", "--resume", str(odd), "--train-timestep", "0.003", "-q"]) == 2
+    assert "--train-timestep is 0.003" in capsys.readouterr().err
     plain = tmp_path / "plain"
     assert main(["evolve", "ca1d", "--pop", "4", "--gens", "1", "--out", str(plain), *TOY]) == 0
     assert main(["evolve", "--resume", str(plain), "--randomize", "-q"]) == 2
@@ -260,12 +268,13 @@ def test_a_cluster_gives_the_same_run(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_physics_and_stamp_timed_on_random_robots(tmp_path: Path) -> None:
-    """A tiny physics run, plain and stamp-timed (schedule model of 1 build), on 2 workers:
-    a validated fitness that replays on the validation robots."""
+    """A tiny physics run, plain and stamp-timed (schedule model of 1 build; each candidate
+    on 2 builds), on 2 workers: a validated fitness that replays on the validation robots, and
+    the nominal model untouched."""
     from hil_mock.schedule_model import schedule_model
 
-    for timed in (False, True):
-        sched = schedule_model("nnsin", builds=1) if timed else None
+    for timed, builds in ((False, None), (True, 1), (True, 2)):
+        sched = schedule_model("nnsin", builds=builds) if timed else None
         result = driver.evolve(
             "nnsin",
             pop=3,
@@ -275,11 +284,11 @@ def test_physics_and_stamp_timed_on_random_robots(tmp_path: Path) -> None:
             randomize=True,
             randomize_samples=2,
             validation_samples=3,
-            out=tmp_path / f"t{timed}",
+            out=tmp_path / f"t{timed}{builds}",
             workers=2,
             stamp_timed=timed,
             schedule_model=sched,
-            schedule_builds=1 if timed else None,
+            schedule_builds=builds,
         )
         assert result.completed and result.fitness > 0
         ctrl = result.controller
@@ -290,9 +299,12 @@ def test_physics_and_stamp_timed_on_random_robots(tmp_path: Path) -> None:
         factory: Any = StampTimedFitness(sched) if timed else PhysicsFitness()
         ev = factory.build()
         again = np.mean(ev([ctrl.states(4)] * 3, robot=robots))
+        nominal_after = ev([ctrl.states(4)])[0]
         ev.close()
         assert again == pytest.approx(result.fitness, abs=1e-12)
-        assert dataclasses.replace(RobotSpec()) == RobotSpec()
+        fresh = factory.build()
+        assert nominal_after == fresh([ctrl.states(4)])[0]  # the robots left no trace
+        fresh.close()
 
 
 @pytest.mark.slow
@@ -362,3 +374,38 @@ def test_simulate_stamp_timed_replays_a_randomized_fitness(
     assert replay["fitness"] == best["fitness"]
     assert replay["nominal_fitness"] == replay["distance"] != best["fitness"]
     assert "4 validation robots" in replay["note"]
+
+
+def test_settings_and_robots_that_cannot_be_randomized(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An unknown key in a run's saved settings (a newer bstool's, or a hand edit) is an error
+    that names it; an empty [uncertain] table would draw K copies of the nominal robot: refused;
+    a randomized run's file without its seed cannot draw its validation robots: refused."""
+    from bstool.errors import InputError
+
+    with pytest.raises(InputError, match="unknown keys bogus"):
+        Randomize.from_json({**Randomize().to_json(), "bogus": 1})
+    empty = tmp_path / "empty.toml"
+    empty.write_text('format = "bstool.robot/1"\n[uncertain]\n')
+    out = tmp_path / "run"
+    args = ["evolve", "ca1d", "--pop", "4", "--gens", "1", "--randomize", "--out", str(out)]
+    assert main([*args, "--robot", str(empty), *TOY]) == 2
+    assert "empty [uncertain] table" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.slow
+def test_a_randomized_file_without_its_seed_is_not_replayed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    assert main(["evolve", "nnsig", "--pop", "2", "--gens", "1", "--seed", "5", "--stamp-timed",
+                 "--randomize", "--randomize-samples", "1", "--validation-samples", "1",
+                 "--transitions", "2", "--out", str(out), "-q"]) == 0  # fmt: skip
+    data = json.loads((out / "best.json").read_text())
+    data.pop("seed")
+    bad = tmp_path / "noseed.json"
+    bad.write_text(json.dumps(data))
+    capsys.readouterr()
+    assert main(["simulate", str(bad), "--stamp-timed", "--json", "-q"]) == 2
+    assert "records no seed" in capsys.readouterr().err

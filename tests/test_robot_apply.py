@@ -98,3 +98,31 @@ def test_geometry_cannot_vary_between_samples() -> None:
             check_applicable(NOMINAL, dataclasses.replace(NOMINAL, **change))
     with BatchEvaluator(NOMINAL, workers=1) as ev, pytest.raises(InputError):
         ev.evaluate([np.zeros((2, 5, 6), dtype=int)], robot=dataclasses.replace(NOMINAL, legs=4))
+
+
+def test_worker_models_are_made_before_the_workers_start(
+    states: np.ndarray, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two workers that each found no model copies made a list of their own: one worker's
+    physics went into the list that the other then replaced, and a later job on that robot
+    ran on the nominal model. Slowed copies and applies make that interleaving certain."""
+    import time
+
+    from bstool.sim import batch
+
+    def slow(func):  # type: ignore[no-untyped-def]
+        def wrapped(*args, **kwargs):  # type: ignore[no-untyped-def]
+            time.sleep(0.05)
+            return func(*args, **kwargs)
+
+        return wrapped
+
+    monkeypatch.setattr(batch, "model_copy", slow(batch.model_copy))
+    monkeypatch.setattr(batch, "apply_physics", slow(batch.apply_physics))
+    robot = dataclasses.replace(NOMINAL, friction=0.9, module_mass=0.1)
+    want = Simulator(robot, transition_time=NOMINAL.transition_time).run(states).distance
+    with BatchEvaluator(NOMINAL, workers=2) as ev:
+        first = ev.evaluate([states, states], robot=robot)
+        again = ev.evaluate([states, states], robot=robot)
+    for got in (*first, *again):
+        assert abs(got.distance - want) <= 1e-9

@@ -208,7 +208,8 @@ def test_other_builds_predict_what_a_build_walks(model: str, builtin_build, cli)
     walked = simulate_build(build, 30)[0].distance
     predicted = float(np.mean(got["other_build_distances"]))
     assert abs(predicted - walked) < 0.05
-    assert abs(got["fitness"] - walked) < 0.05
+    # a randomized run's fitness is its validation mean; the nominal robot's is beside it
+    assert abs(got.get("nominal_fitness", got["fitness"]) - walked) < 0.05
 
 
 def _copy_shipped(model: str, tmp: Path) -> Path:

@@ -89,7 +89,13 @@ def evaluation(controller: Controller) -> dict[str, Any]:
     the period), on the nominal robot it was evolved for (part of best.json)."""
     ga = controller.ga or {}
     if ga.get("stamp_timed"):
-        return {"kind": "stamp-timed", "period": ga.get("period")}
+        how = {"kind": "stamp-timed", "period": ga.get("period")}
+        # the schedule model it was scored on: --schedule-builds, and --timing by its sha256
+        if ga.get("schedule_builds"):
+            how["builds"] = ga["schedule_builds"]
+        if isinstance(ga.get("timing"), dict):
+            how["timing_sha256"] = ga["timing"].get("sha256")
+        return how
     return {"kind": "plain"}
 
 

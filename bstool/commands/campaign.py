@@ -59,12 +59,17 @@ def evolve_settings() -> dict[str, cp.Setting]:
 
 def analysis_schedule(controller: Any, period: float | None) -> Any:
     """The schedule model a stamp-timed run's analyses play it on (as ``report --stamp-timed``)."""
+    from bstool import timingfile
     from bstool.campaign.analyses import robot_of
+    from bstool.commands.simulate_model import evolved_builds, evolved_timing
     from hil_mock.schedule_model import schedule_model
 
     c = controller
     spec = robot_of(c).spec
-    return schedule_model(c.model, period=period, legs=c.legs, modules=c.modules, spec=spec)
+    timing_file = evolved_timing(c, "the run's best.json")
+    timing = None if timing_file is None else timingfile.load(timing_file)
+    return schedule_model(c.model, period=period, legs=c.legs, modules=c.modules, spec=spec,
+                          timing=timing, builds=evolved_builds(c))  # fmt: skip
 
 
 @click.command("campaign")

@@ -235,7 +235,9 @@ def _randomize_given(given: dict[str, Any]) -> dict[str, Any]:
         return {}
     if all(v is None for v in typed.values()):
         return {"randomize": True}
-    return {"randomize": opt.randomize_settings(True, *typed.values())["randomize"]}
+    opt.randomize_settings(True, *typed.values())  # checks each value typed
+    keys = dict(zip(_RANDOMIZE_OPTIONS[1:], opt.RANDOMIZE_KEYS, strict=True))
+    return {"randomize": {keys[k]: v for k, v in typed.items() if v is not None}}
 
 
 def _mode(plan: Plan) -> str:

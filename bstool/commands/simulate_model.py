@@ -177,7 +177,13 @@ def validation_mean(ctrl: Controller, states: np.ndarray, fitted: ScheduleSource
     ga = ctrl.ga if isinstance(ctrl.ga, dict) else {}
     settings = Randomize.from_json(ga["randomize"])
     robot = Robot() if ctrl.robot is None else from_record(ctrl.robot, "the controller")
-    robots = validation_robots(robot, settings, int(ctrl.seed or 0))
+    if ctrl.seed is None:
+        raise InputError(
+            "this randomized run's controller file records no seed, so its validation robots "
+            "cannot be drawn again",
+            hint='replay it with the seed it was evolved with in the file\'s "seed"',
+        )
+    robots = validation_robots(robot, settings, int(ctrl.seed))
     ev = StampTimedFitness(fitted, ctrl.legs, ctrl.modules, 2, spec).build()
     try:
         raw = ev([states] * len(robots), robot=robots)

@@ -214,6 +214,13 @@ def plan_new(
     )
     loaded, record = opt.robot_settings(robot)
     extra.update(record)
+    if "randomize" in extra and loaded is not None and not loaded.box.ranges:
+        raise InputError(
+            f"--randomize: {loaded.source} has an empty [uncertain] table, so every robot "
+            "drawn would be the nominal one",
+            hint="give the table some ranges, or drop it for the default box, or evolve "
+            "without --randomize",
+        )
     directory, replace = (None, False) if out is None else check_out(out, force=force)
     problem = Problem(opt.check_model(model), transitions=params.transitions)
     file = None if timing is None else str(timing)

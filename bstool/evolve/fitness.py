@@ -233,11 +233,14 @@ class StampTimedEvaluator(PhysicsEvaluator):
         self.schedule_model = schedule_model
 
     def __call__(self, sequences: Sequence[np.ndarray], robot: Any = None) -> list[float]:
+        from bstool.robot import RobotSpec
         from bstool.sim.timed import mean_distance, schedules_of
 
         self._stop.clear()
         groups = [schedules_of(self.schedule_model, s) for s in sequences]
         flat = [s for group in groups for s in group]
+        if robot is not None and not isinstance(robot, RobotSpec):
+            robot = _per_schedule(list(robot), groups)
         try:
             more = {} if robot is None else {"robot": robot}
             results = self.runner.evaluate_schedules(flat, progress=self._progress, **more)
@@ -251,3 +254,14 @@ class StampTimedEvaluator(PhysicsEvaluator):
             )
             start += len(group)
         return out
+
+
+def _per_schedule(robots: list[Any], groups: list[list[Any]]) -> list[Any]:
+    """One robot per sequence, repeated for each schedule (build) the sequence is played on."""
+    from bstool.errors import InputError
+
+    if len(robots) != len(groups):
+        raise InputError(
+            f"{len(robots)} robots given for {len(groups)} sequences: give one per sequence"
+        )
+    return [r for r, group in zip(robots, groups, strict=True) for _ in group]

@@ -210,6 +210,29 @@ def stamp_timed_settings(
     return out
 
 
+#: the run's saved randomize settings, in the order of --randomize-samples, --randomize-score,
+#: --validate-every, --validation-samples, --train-timestep
+RANDOMIZE_KEYS = ("samples", "score", "validate_every", "validation_samples", "train_timestep")
+_RANDOMIZE_FLAGS = dict(zip(RANDOMIZE_KEYS, ("--randomize-samples", "--randomize-score",
+                                             "--validate-every", "--validation-samples",
+                                             "--train-timestep"), strict=True))  # fmt: skip
+
+
+def _check_randomize_typed(
+    typed: Mapping[str, Any], saved: Mapping[str, Any], directory: str | os.PathLike[str]
+) -> None:
+    """On --resume: each randomize option typed must equal the run's own (the others are
+    the run's, whatever their defaults are today)."""
+    for key, value in typed.items():
+        before = saved.get(key)
+        if value != before:
+            raise InputError(
+                f"{_RANDOMIZE_FLAGS[key]} is {value!r} but the run in {directory} was started "
+                f"with {before!r}",
+                hint="a resumed run keeps its settings; only --gens may be raised",
+            )
+
+
 def randomize_settings(
     randomize: bool,
     samples: Any = None,
@@ -340,6 +363,9 @@ def check_resume(
             value = robot_settings(value)[1]["robot"]
         if name == "randomize" and value is True:
             value = saved.get(name) or True  # the flag alone: kept settings are fine
+        if name == "randomize" and isinstance(value, dict) and isinstance(saved.get(name), dict):
+            _check_randomize_typed(value, saved[name], directory)
+            continue
         before = saved.get(name)
         if value != before:
             raise InputError(

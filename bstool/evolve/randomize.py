@@ -94,6 +94,13 @@ class Randomize:
     def from_json(cls, obj: Any) -> Randomize:
         if not isinstance(obj, dict):
             raise InputError(f"a run's randomize settings must be an object, got {obj!r}")
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(obj) - known)
+        if unknown:
+            raise InputError(
+                f"a run's randomize settings have unknown keys {', '.join(unknown)}",
+                hint=f"known: {', '.join(sorted(known))} (made by a newer bstool?)",
+            )
         return cls(**obj)
 
 

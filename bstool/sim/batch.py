@@ -96,6 +96,7 @@ class BatchEvaluator:
             return []
         robots = self._per_job(robot, len(arrays))
         if robots is not None:
+            self._make_worker_models()
             return self._threads_jobs(len(arrays), self._varied_job(arrays, robots), progress)
         if self.method == "sequential" or (self.method == "threads" and self.workers == 1):
             return self._sequential(arrays, progress)
@@ -118,6 +119,7 @@ class BatchEvaluator:
             return []
         robots = self._per_job(robot, len(schedules)) or [None] * len(schedules)
         caches = {r: self._power_ups(r) for r in dict.fromkeys(robots)}
+        self._make_worker_models()
 
         def job(i: int, w: int) -> SimResult:
             model = self._worker_model(w, robots[i])
@@ -166,11 +168,17 @@ class BatchEvaluator:
             raise InputError(f"{len(robots)} robots given for {count} runs: give one per run")
         return None if all(r is None for r in robots) else robots
 
-    def _worker_model(self, w: int, robot: RobotSpec | None) -> mujoco.MjModel:
-        """Worker ``w``'s model copy with ``robot``'s physics (None: the nominal's)."""
+    def _make_worker_models(self) -> None:
+        """The workers' model copies, made once, in the caller's thread before any job runs
+        (made lazily by the workers themselves, two threads could each make a list and one
+        worker's physics be recorded in the list that was then replaced)."""
         if not self._models:
             self._models = [model_copy(self.sim.model) for _ in self._datas]
             self._applied = [None] * len(self._datas)
+
+    def _worker_model(self, w: int, robot: RobotSpec | None) -> mujoco.MjModel:
+        """Worker ``w``'s model copy with ``robot``'s physics (None: the nominal's); only
+        worker ``w``'s thread touches entry ``w``."""
         if self._applied[w] != robot:
             apply_physics(
                 self._models[w], robot or self.spec, base=self.spec, base_model=self.sim.model
