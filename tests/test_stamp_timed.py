@@ -192,7 +192,20 @@ def test_schedule_model_follows_a_real_build(model: str, tmp_path: Path) -> None
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("model", ["ca2dsing", "ca2ddiff"])
+@pytest.mark.parametrize(
+    "model",
+    [
+        pytest.param(
+            "ca2dsing",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="the lead-ring lock (docs/twin.md): two of the shipped ca2dsing's four "
+                "other builds lock, their mean 6.4 cm short of its own build's 41.8",
+            ),
+        ),
+        "ca2ddiff",
+    ],
+)
 def test_other_builds_predict_what_a_build_walks(model: str, builtin_build, cli) -> None:
     """The controller's mean distance on builds it was not scored on predicts what its own
     build walks, and so does its fitness now that the builds keep in step (protocol/link.md
