@@ -211,6 +211,23 @@ def test_every_program_tokenizes_and_fits(model: str, tmp_path: Path) -> None:
         assert mod.ram_bytes <= 26
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("model", ["nnsig", "nnsin"])
+def test_the_largest_nn_programs_fit(model: str, tmp_path: Path) -> None:
+    """Every upstream weight 1: module 3's NnTable and program are the largest any NN
+    controller makes (2041 of 2048 bytes, protocol/link.md §4.6)."""
+    import numpy as np
+
+    from bstool.controllers import make_controller, save_controller
+
+    ctrl = make_controller(model, np.full((5, 6), 5), weights=np.triu(np.ones((5, 6, 6), int), 1))
+    save_controller(ctrl, tmp_path / "c.json")
+    res = compile_controller(tmp_path / "c.json", tmp_path / "b")
+    sizes = [sr.program_bytes + sr.data_bytes for mod in res.modules for sr in mod.slots]  # type: ignore[operator]
+    assert max(sizes) <= 2048
+    assert max(mod.ram_bytes for mod in res.modules) <= 26
+
+
 def test_slot_that_does_not_fit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The tokenizer's error 124 becomes a BuildError naming the slot and the overflow."""
     from types import SimpleNamespace

@@ -8,8 +8,9 @@ ends at once (the other end answers only what it hears). The other direction nee
 fallback: a CA master that holds its slave dead sends its age, never its state, and a slave
 that gets an age while it lacks the master's state counts it as silence (before, the slave kept
 taking the master's states while the master held it dead: 5 of 30 modules differed,
-``0.1>0.0``). An NN module whose answers upstream are lost still hears its upstream's polls
-and never paces: not handled yet (strict xfail, docs/twin.md).
+``0.1>0.0``). An NN module whose answers upstream are lost heard its upstream's polls and
+never paced (until 2026-12-07); now a READY that no states follow makes it deaf on that wire
+(protocol/link.md §4.6 "one-way"), and its upstream's polls stop counting as hearing it.
 """
 
 from __future__ import annotations
@@ -68,18 +69,12 @@ NN_CASES = [
     pytest.param("nnsig", "2.2>2.3@3", id="nnsig-upstream-lost-running"),
     pytest.param("nnsin", "2.1>2.3", id="nnsin-bypass"),
     pytest.param("nnsig", "2.3>2.1", id="nnsig-bypass-back"),
-    pytest.param(
-        "nnsin",
-        "2.3>2.2",
-        id="nnsin-downstream-lost-power-up",
-        marks=pytest.mark.xfail(strict=True, reason="NN: an unheard module keeps hearing polls"),
-    ),
-    pytest.param(
-        "nnsig",
-        "2.3>2.2@3",
-        id="nnsig-downstream-lost-running",
-        marks=pytest.mark.xfail(strict=True, reason="NN: an unheard module keeps hearing polls"),
-    ),
+    # the upstream module's READY goes unheard: no states follow it, so the slave is deaf on
+    # that wire and its polls no longer count as hearing upstream; it paces as after a cut
+    pytest.param("nnsin", "2.3>2.2", id="nnsin-downstream-lost-power-up"),
+    pytest.param("nnsig", "2.3>2.2", id="nnsig-downstream-lost-power-up"),
+    pytest.param("nnsin", "0.1>0.0@2.5", id="nnsin-downstream-lost-running-lead"),
+    pytest.param("nnsig", "2.3>2.2@3", id="nnsig-downstream-lost-running"),
 ]
 
 
