@@ -243,8 +243,8 @@ def test_the_leads_wire_cut_in_a_running_robot(serve_builds: dict[str, Build]) -
 
 @pytest.mark.xfail(
     strict=True,
-    reason="open (2026-12-07): 0.5 shows S^8..10 computed with 0.2's S^6 where the reference "
-    "(0.2 dying at 7) holds its S^7; found by bench/one_way_sweep.py --leg 0, docs/twin.md",
+    reason="open (2026-12-07): 0.2's and 0.3's keep-alive rounds phase-lock, 0.2 marks 0.3 "
+    "dead and feeds 0.4 its paced (stale) frame on the bypass; docs/twin.md",
 )
 def test_the_module_after_a_cut_at_this_instant_of_leg_0(serve_builds: dict[str, Build]) -> None:
     """nnsin, 0.1-0.2 cut at 4 s: exact on the programs before the deaf bit's byte savings and
