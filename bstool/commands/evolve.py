@@ -27,7 +27,7 @@ from bstool.evolve.driver import (
     plan_new,
     plan_resume,
 )
-from bstool.evolve.randomize import SCORES
+from bstool.evolve.randomize import OPTION_FLAGS, SCORES
 from bstool.evolve.scoring import ROBUST_MODES
 
 _D = opt.default
@@ -236,7 +236,7 @@ def _randomize_given(given: dict[str, Any]) -> dict[str, Any]:
     if all(v is None for v in typed.values()):
         return {"randomize": True}
     opt.randomize_settings(True, *typed.values())  # checks each value typed
-    keys = dict(zip(_RANDOMIZE_OPTIONS[1:], opt.RANDOMIZE_KEYS, strict=True))
+    keys = dict(zip(_RANDOMIZE_OPTIONS[1:], OPTION_FLAGS, strict=True))  # option -> setting
     return {"randomize": {keys[k]: v for k, v in typed.items() if v is not None}}
 
 

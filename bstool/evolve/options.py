@@ -210,24 +210,18 @@ def stamp_timed_settings(
     return out
 
 
-#: the run's saved randomize settings, in the order of --randomize-samples, --randomize-score,
-#: --validate-every, --validation-samples, --train-timestep
-RANDOMIZE_KEYS = ("samples", "score", "validate_every", "validation_samples", "train_timestep")
-_RANDOMIZE_FLAGS = dict(zip(RANDOMIZE_KEYS, ("--randomize-samples", "--randomize-score",
-                                             "--validate-every", "--validation-samples",
-                                             "--train-timestep"), strict=True))  # fmt: skip
-
-
 def _check_randomize_typed(
     typed: Mapping[str, Any], saved: Mapping[str, Any], directory: str | os.PathLike[str]
 ) -> None:
     """On --resume: each randomize option typed must equal the run's own (the others are
     the run's, whatever their defaults are today)."""
+    from bstool.evolve.randomize import OPTION_FLAGS
+
     for key, value in typed.items():
         before = saved.get(key)
         if value != before:
             raise InputError(
-                f"{_RANDOMIZE_FLAGS[key]} is {value!r} but the run in {directory} was started "
+                f"{OPTION_FLAGS[key]} is {value!r} but the run in {directory} was started "
                 f"with {before!r}",
                 hint="a resumed run keeps its settings; only --gens may be raised",
             )

@@ -43,6 +43,16 @@ DEFAULT_VALIDATION_SAMPLES = 64
 DEFAULT_TRAIN_TIMESTEP = 0.003
 
 
+#: each saved setting's command-line option, in the order `bstool evolve` lists them
+OPTION_FLAGS = {
+    "samples": "--randomize-samples",
+    "score": "--randomize-score",
+    "validate_every": "--validate-every",
+    "validation_samples": "--validation-samples",
+    "train_timestep": "--train-timestep",
+}
+
+
 @dataclass(frozen=True)
 class Randomize:
     """The settings of a randomized run (saved with it; fixed on resume)."""
@@ -61,9 +71,9 @@ class Randomize:
         for name, low in (("samples", 1), ("validate_every", 1), ("validation_samples", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                flag = {"samples": "--randomize-samples", "validate_every": "--validate-every",
-                        "validation_samples": "--validation-samples"}[name]  # fmt: skip
-                raise InputError(f"{flag} must be an integer of at least {low}, got {value!r}")
+                raise InputError(
+                    f"{OPTION_FLAGS[name]} must be an integer of at least {low}, got {value!r}"
+                )
         step = self.train_timestep
         if step is not None and (
             isinstance(step, bool) or not isinstance(step, int | float) or not 0 < step <= 0.01
