@@ -17,8 +17,9 @@ with the issue's targets: mean >= 1.3 x the shipped gait's, 10th percentile >= 5
 own nominal distance, nominal >= 85 % of the shipped gait's. OUT/summary.json holds it all.
 
 Usage: python bench/reship_randomized.py OUT [--models nnsin,...] [--seeds 1,2,3]
-       [--samples 4] [--robots 64] [--workers 2] [--no-nominal] [--measure-only]
-       [--plain] [--pop P] [--gens G] [--ca2ddiff-gens L] [--coevol-gens C] [--no-shipped]
+       [--samples 4] [--score mean|worst-quarter] [--robots 64] [--workers 2] [--no-nominal]
+       [--measure-only] [--plain] [--pop P] [--gens G] [--ca2ddiff-gens L] [--coevol-gens C]
+       [--no-shipped]
 With --plain and a budget it is the evolution comparison of docs/results.md ("Randomized
 against nominal evolution"): every figure there is plain physics.
 """
@@ -78,7 +79,11 @@ def evolve_one(out: Path, model: str, seed: int, kind: str, args: argparse.Names
     gens = b["gens"] if kind == "rand" else b["gens"] * args.samples
     more: dict[str, Any] = {}
     if kind == "rand":
-        more = {"randomize": True, "randomize_samples": args.samples}
+        more = {
+            "randomize": True,
+            "randomize_samples": args.samples,
+            "randomize_score": args.score,
+        }
     if args.init_shipped:
         more["init"] = builtin_controller(model)
     start = time.perf_counter()
@@ -149,6 +154,9 @@ def main() -> None:
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--samples", type=int, default=4, help="K of --randomize")
+    ap.add_argument(
+        "--score", default="mean", choices=("mean", "worst-quarter"), help="--randomize-score"
+    )
     ap.add_argument("--robots", type=int, default=64, help="fresh robots to measure on")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-nominal", action="store_true", help="skip nominal evolution")

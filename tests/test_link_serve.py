@@ -241,16 +241,12 @@ def test_the_leads_wire_cut_in_a_running_robot(serve_builds: dict[str, Build]) -
     assert exact
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="open (2026-12-07): 0.2's and 0.3's keep-alive rounds phase-lock, 0.2 marks 0.3 "
-    "dead and feeds 0.4 its paced (stale) frame on the bypass; docs/twin.md",
-)
 def test_the_module_after_a_cut_at_this_instant_of_leg_0(serve_builds: dict[str, Build]) -> None:
-    """nnsin, 0.1-0.2 cut at 4 s: exact on the programs before the deaf bit's byte savings and
-    with any deaf module (the same timing without the deaf bit fails too), so a window of the
-    relay's timing, not of the deaf rule; the other 17 instants of leg 0's first three chain
-    wires at 3-5.5 s are exact, and so are leg 2's 40 (bench/nn_cuts.py)."""
+    """nnsin, 0.1-0.2 cut at 4 s: 0.2 (cut off, showing S^7) and 0.3 sent their keep-alives in
+    the same round of four, and two loops of one length phase-locked: each poll of 0.2 fell
+    outside 0.3's listen for 2.6 s, 0.2 marked 0.3 dead and fed 0.4 a stale frame on the
+    bypass. A master wire silent for ti ticks is polled in more rounds (every round from
+    ti = 3, as CA does), which breaks the lock (protocol/link.md §4.6; failed before)."""
     exact, _ = _cut_in_run(serve_builds["nnsin"], (ModuleId(0, 1), ModuleId(0, 2)), 4.0)
     assert exact
 
