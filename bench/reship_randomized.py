@@ -72,8 +72,8 @@ def evolve_one(out: Path, model: str, seed: int, kind: str, args: argparse.Names
         state = driver.plan_resume(folder, {}).state
         if state.done:
             return folder
-        more = {k: v for k, v in _timed(model, args).items() if k == "schedule_model"}
-        driver.execute(driver.plan_resume(folder, {}), workers=args.workers, **more)
+        schedule = {k: v for k, v in _timed(model, args).items() if k == "schedule_model"}
+        driver.execute(driver.plan_resume(folder, {}), workers=args.workers, **schedule)
         return folder
     b = budget(model, args)
     gens = b["gens"] if kind == "rand" else b["gens"] * args.samples
@@ -176,7 +176,8 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in args.seeds.split(",")]
     kinds = ["rand"] if args.no_nominal else ["rand", "nominal"]
-    summary: dict[str, Any] = {}
+    old = args.out / "summary.json"
+    summary: dict[str, Any] = fileio.read_json(old) if old.exists() else {}  # other models kept
     for model in args.models.split(","):
         paths: dict[str, Path] = {} if args.no_shipped else {"shipped": builtin_controller(model)}
         for seed in seeds:
