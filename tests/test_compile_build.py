@@ -216,7 +216,7 @@ def test_every_program_tokenizes_and_fits(model: str, tmp_path: Path) -> None:
 def test_the_largest_nn_programs_fit(model: str, tmp_path: Path) -> None:
     """Every upstream weight 1 and every R^0 15 (the initial states are constants in the
     program, and a larger constant takes more bits): module 3's NnTable and program are the
-    largest any NN controller makes (2045 of 2048 bytes, protocol/link.md §4.6)."""
+    largest any NN controller makes (2035 of 2048 bytes, protocol/link.md §4.6)."""
     import numpy as np
 
     from bstool.controllers import make_controller, save_controller

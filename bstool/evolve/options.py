@@ -236,19 +236,13 @@ def randomize_settings(
     train_timestep: Any = None,
 ) -> dict[str, Any]:
     """What a run saves for ``--randomize`` and its options (nothing without it)."""
-    from bstool.evolve.randomize import DEFAULT_TRAIN_TIMESTEP, Randomize
+    from bstool.evolve.randomize import DEFAULT_TRAIN_TIMESTEP, OPTION_FLAGS, Randomize
 
-    given = {
-        "randomize-samples": samples,
-        "randomize-score": score,
-        "validate-every": validate_every,
-        "validation-samples": validation_samples,
-        "train-timestep": train_timestep,
-    }
     if not randomize:
-        for name, value in given.items():
+        values = (samples, score, validate_every, validation_samples, train_timestep)
+        for flag, value in zip(OPTION_FLAGS.values(), values, strict=True):
             if value is not None:
-                raise InputError(f"--{name} only applies with --randomize", hint="add --randomize")
+                raise InputError(f"{flag} only applies with --randomize", hint="add --randomize")
         return {}
     d = Randomize()
     settings = Randomize(
