@@ -19,7 +19,7 @@ own nominal distance, nominal >= 85 % of the shipped gait's. OUT/summary.json ho
 Usage: python bench/reship_randomized.py OUT [--models nnsin,...] [--seeds 1,2,3]
        [--samples 4] [--score mean|worst-quarter] [--robots 64] [--workers 2] [--no-nominal]
        [--measure-only] [--plain] [--pop P] [--gens G] [--ca2ddiff-gens L] [--coevol-gens C]
-       [--no-shipped]
+       [--no-shipped] [--baseline DIR]
 With --plain and a budget it is the evolution comparison of docs/results.md ("Randomized
 against nominal evolution"): every figure there is plain physics.
 """
@@ -46,9 +46,17 @@ MODELS = ("nnsin", "nnsig", "ca1d", "ca2dsing", "ca2ddiff")
 FRESH_SEED = 20261204  # the measuring robots: apart from every run's draws
 
 
+def baseline(model: str, args: argparse.Namespace) -> Path:
+    """The gait a re-ship is measured against and starts from: the shipped one, or --baseline's
+    (tests/data/traced holds those shipped before the re-ship of 2026-12-07)."""
+    if args.baseline is None:
+        return builtin_controller(model)
+    return args.baseline / f"{model}.json"
+
+
 def budget(model: str, args: argparse.Namespace) -> dict[str, Any]:
-    """The shipped gait's GA budget, or the one given (--pop, --gens, --coevol-gens)."""
-    ga = load_controller(builtin_controller(model)).ga or {}
+    """The baseline gait's GA budget, or the one given (--pop, --gens, --coevol-gens)."""
+    ga = load_controller(baseline(model, args)).ga or {}
     out = {k: ga[k] for k in ("pop", "gens", "coevol_gens", "pm")}
     for key in ("pop", "coevol_gens"):
         if getattr(args, key) is not None:
@@ -85,7 +93,7 @@ def evolve_one(out: Path, model: str, seed: int, kind: str, args: argparse.Names
             "randomize_score": args.score,
         }
     if args.init_shipped:
-        more["init"] = builtin_controller(model)
+        more["init"] = baseline(model, args)
     start = time.perf_counter()
     driver.evolve(
         model,
@@ -172,6 +180,12 @@ def main() -> None:
         action="store_true",
         help="start every run from the shipped gait (evolve --init)",
     )
+    ap.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        help="folder of <model>.json to compare with and start from (default: the shipped)",
+    )
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -179,7 +193,7 @@ def main() -> None:
     old = args.out / "summary.json"
     summary: dict[str, Any] = fileio.read_json(old) if old.exists() else {}  # other models kept
     for model in args.models.split(","):
-        paths: dict[str, Path] = {} if args.no_shipped else {"shipped": builtin_controller(model)}
+        paths: dict[str, Path] = {} if args.no_shipped else {"shipped": baseline(model, args)}
         for seed in seeds:
             for kind in kinds:
                 folder = args.out / f"{model}-{kind}-s{seed}"

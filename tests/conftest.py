@@ -1,5 +1,10 @@
-"""Helpers shared by the tests: running the CLI, compiled builds of the built-in controllers,
-and hand-made build folders in the bstool.build/1 format (written by bstool.buildfile)."""
+"""Helpers shared by the tests: running the CLI, the traced controllers and their compiled
+builds, and hand-made build folders in the bstool.build/1 format (written by bstool.buildfile).
+
+The traced controllers (tests/data/traced/) are frozen copies of the controllers shipped on
+2026-12-07: the link and twin tests replay fault instants traced on their programs, so they
+stay on these when the shipped gaits are re-evolved. Tests of the shipped gaits themselves
+(their fitness replays, bstool.builtin) read bstool/data/controllers/."""
 
 from __future__ import annotations
 
@@ -39,15 +44,24 @@ def cli(capsys: pytest.CaptureFixture[str]) -> Callable[..., CliRun]:
     return lambda *args: run_cli(args, capsys)
 
 
-BuiltinBuild = Callable[..., Path]
+TRACED = Path(__file__).parent / "data" / "traced"
+
+
+def traced_controller(model: str) -> Path:
+    """The frozen copy of the controller of ``model`` that the link tests were traced on."""
+    path = TRACED / f"{model}.json"
+    assert path.is_file(), f"no traced controller for {model!r}"
+    return path
+
+
+TracedBuild = Callable[..., Path]
 
 
 @pytest.fixture(scope="session")
-def builtin_build(tmp_path_factory: pytest.TempPathFactory) -> Iterator[BuiltinBuild]:
-    """``builtin_build("nnsin", period=None, fresh=False)``: the folder of ``bstool compile``
-    of a built-in controller, compiled once per session; ``fresh`` gives a private copy (for
+def traced_build(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TracedBuild]:
+    """``traced_build("nnsin", period=None, fresh=False)``: the folder of ``bstool compile``
+    of a traced controller, compiled once per session; ``fresh`` gives a private copy (for
     tests that write into it, e.g. flash's progress file, or damage it)."""
-    from bstool.builtin import builtin_controller
     from bstool.cli import main
 
     cache: dict[tuple[str, float | None], Path] = {}
@@ -58,7 +72,7 @@ def builtin_build(tmp_path_factory: pytest.TempPathFactory) -> Iterator[BuiltinB
             out = tmp_path_factory.mktemp(f"{model}-{period}") / "build"
             more = ["--period", str(period)] if period is not None else []
             assert (
-                main(["compile", str(builtin_controller(model)), "-o", str(out), "-q", *more]) == 0
+                main(["compile", str(traced_controller(model)), "-o", str(out), "-q", *more]) == 0
             )
             cache[key] = out
         if not fresh:

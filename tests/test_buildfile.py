@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 import pytest
-from conftest import BuiltinBuild, FakeModule, write_fake_build
+from conftest import FakeModule, TracedBuild, write_fake_build
 
 from bstool import buildfile
 from bstool.errors import BuildError, InputError
@@ -25,8 +25,8 @@ def test_golden_manifests_round_trip_byte_for_byte(model: str) -> None:
     assert man.format == buildfile.FORMAT and not man.tokenized
 
 
-def test_a_compiled_build_loads_and_verifies(builtin_build: BuiltinBuild) -> None:
-    build = buildfile.load(builtin_build("ca1d"))
+def test_a_compiled_build_loads_and_verifies(traced_build: TracedBuild) -> None:
+    build = buildfile.load(traced_build("ca1d"))
     assert (build.legs, build.modules) == (5, 6) and build.manifest.tokenized
     m = build.module(ModuleId(2, 3))
     assert m.label == "L2.M3" and m.servo_pin == 12 and m.ram_map is not None

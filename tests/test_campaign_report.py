@@ -177,12 +177,13 @@ def test_a_stamp_timed_runs_analyses_use_the_schedule_model_it_was_scored_on() -
     on (not the one averaged model), and the cache digest says so."""
     import dataclasses
 
-    from bstool.builtin import builtin_controller
+    from conftest import traced_controller
+
     from bstool.campaign.analyses import evaluation
     from bstool.commands.campaign import analysis_schedule
     from bstool.controllers import load_controller
 
-    c = load_controller(builtin_controller("nnsig"))
+    c = load_controller(traced_controller("nnsig"))
     ensemble = dataclasses.replace(c, ga={**(c.ga or {}), "schedule_builds": 2})
     assert evaluation(c) == {"kind": "stamp-timed", "period": None}  # digests kept
     assert evaluation(ensemble)["builds"] == 2

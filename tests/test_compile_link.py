@@ -7,10 +7,10 @@ import json
 from pathlib import Path
 
 import pytest
+from conftest import traced_controller
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bstool.builtin import builtin_controller
 from bstool.compile.calibration import DEFAULT
 from bstool.compile.plan import build_plans
 from bstool.compile.topology import links, module_links, reads
@@ -175,7 +175,7 @@ def test_every_program_declares_the_manifest_constants(tmp_path: Path) -> None:
     from bstool.compile import compile_controller
 
     for model in MODELS:
-        res = compile_controller(builtin_controller(model), tmp_path / model, tokenize=False)
+        res = compile_controller(traced_controller(model), tmp_path / model, tokenize=False)
         man = res.manifest
         for m in man.modules:
             text = (tmp_path / model / m.entry).read_text()
@@ -268,7 +268,7 @@ def test_link_vector_files_are_up_to_date() -> None:
 
 def test_dead_limit_is_at_least_a_second_and_a_half() -> None:
     """DeadTicks (protocol/link.md §5): silent ticks, each a lower bound of tries, >= 1.5 s."""
-    ctrl = load_controller(builtin_controller("ca2dsing"))
+    ctrl = load_controller(traced_controller("ca2dsing"))
     tick_ms = link.CA_TICK_QUIET * link.CA_QUIET_UNIT_MS
     for plan in build_plans(ctrl, DEFAULT, 0.475, "0" * 8):
         assert (plan.dead_ticks - 1) * tick_ms >= link.CA.dead_limit_ms

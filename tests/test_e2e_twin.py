@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import traced_controller
 
 from bstool.builtin import MODELS as BUILTIN
-from bstool.builtin import builtin_controller
 from bstool.cli import main
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
@@ -32,10 +32,10 @@ PERIOD_TOLERANCE = 0.15  # measured mean period against the manifest's estimate 
 
 
 @pytest.fixture(scope="module", params=BUILTIN)
-def flashed(request: pytest.FixtureRequest, builtin_build):  # type: ignore[no-untyped-def]
+def flashed(request: pytest.FixtureRequest, traced_build):  # type: ignore[no-untyped-def]
     model = request.param
-    source = builtin_controller(model)
-    build = builtin_build(model, fresh=True)  # flash writes its progress file into it
+    source = traced_controller(model)
+    build = traced_build(model, fresh=True)  # flash writes its progress file into it
     manifest = load_build(build)
     fleet = make_fleet(manifest.legs, manifest.modules)
     ports = build.parent / "ports.json"
@@ -100,6 +100,6 @@ def test_twin_cli_reports_equal(
 ) -> None:  # type: ignore[no-untyped-def]
     model, _, build, _ = flashed
     code = main(["twin", str(build.root), "-T", "6", "--no-physics", "--json", "-q",
-                 "--controller", str(builtin_controller(model))])  # fmt: skip
+                 "--controller", str(traced_controller(model))])  # fmt: skip
     out = json.loads(capsys.readouterr().out)
     assert code == 0 and out["states_equal"] and out["announcements_ok"]

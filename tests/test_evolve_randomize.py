@@ -335,11 +335,12 @@ def test_training_on_a_coarser_step_validates_on_the_robots_own(tmp_path: Path) 
 def test_init_starts_from_a_controller(model: str, tmp_path: Path) -> None:
     """--init C.json: the chromosomes decode back to C (every model), row 0 of generation 0
     is C itself, and the run records where it started."""
-    from bstool.builtin import builtin_controller
+    from conftest import traced_controller
+
     from bstool.controllers import load_controller
     from bstool.evolve.problem import Problem
 
-    ctrl = load_controller(builtin_controller(model))
+    ctrl = load_controller(traced_controller(model))
     problem = Problem(model)
     bits = problem.chromosomes(ctrl)
     if model == "ca2ddiff":
@@ -348,7 +349,7 @@ def test_init_starts_from_a_controller(model: str, tmp_path: Path) -> None:
         again = problem.controller("main", bits["main"])
     assert np.array_equal(again.states(30), ctrl.states(30))
     plan = driver.plan_new(model, opt.ga_params(model, pop=4, gens=1, seed=1), fitness="toy",
-                           init=builtin_controller(model))  # fmt: skip
+                           init=traced_controller(model))  # fmt: skip
     for name in problem.populations:
         assert np.array_equal(plan.state.populations[name][0], bits[name])
     assert plan.extra["init"]["controller_hash"] == ctrl.hash()

@@ -17,16 +17,16 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import traced_controller
 
-from bstool.builtin import builtin_controller
 from bstool.cli import COMMANDS
 
 pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLE = ROOT / "docs" / "cli.md"
-CTRL = builtin_controller("ca1d")
-BUILD_CTRL = builtin_controller("ca2dsing")
+CTRL = traced_controller("ca1d")
+BUILD_CTRL = traced_controller("ca2dsing")
 
 
 def console_script() -> str:

@@ -374,7 +374,7 @@ def test_a_controller_without_module_is_refused_before_compiling(
         raise AssertionError("compiled before saying what is missing")
 
     monkeypatch.setattr(bstool.compile, "compile_controller", boom)
-    from bstool.builtin import builtin_controller
+    from conftest import traced_controller
 
-    code = main(["flash", "--port", "bstwin://nobody", str(builtin_controller("ca1d"))])
+    code = main(["flash", "--port", "bstwin://nobody", str(traced_controller("ca1d"))])
     assert code == 2

@@ -55,9 +55,9 @@ def _run(build: object, cut: str | None, scale: float, seed: int = 0) -> TwinRep
     ],
 )
 def test_a_lead_wire_cut_from_power_up_is_exact_on_slow_stamps(
-    builtin_build, model: str, cut: str, scale: float, seed: int
+    traced_build, model: str, cut: str, scale: float, seed: int
 ) -> None:
-    report = _run(builtin_build(model), cut, scale, seed)
+    report = _run(traced_build(model), cut, scale, seed)
     assert not report.result.stalled
     assert report.ok, report.check.first_mismatch
 
@@ -72,7 +72,7 @@ def test_a_lead_wire_cut_from_power_up_is_exact_on_slow_stamps(
     ],
 )
 def test_a_cut_leaves_the_running_period_within_a_fifth(
-    builtin_build, model: str, cut: str, scale: float
+    traced_build, model: str, cut: str, scale: float
 ) -> None:
     """The robot waits out the power-up window for the silent neighbour (the start-up,
     reported apart); afterwards it runs at about its period without the cut (before: 0.82 s
@@ -80,17 +80,17 @@ def test_a_cut_leaves_the_running_period_within_a_fifth(
     at timing scale 1 and 0.59 against 0.52 at 1.5 (0.63 and 0.69 while the lead showed a
     frame for its dead chain wire and module 2 listened to module 1's polls every round;
     0.82 at scale 1 before the bypass fix)."""
-    healthy = _run(builtin_build(model), None, scale)
-    cut_run = _run(builtin_build(model), cut, scale)
+    healthy = _run(traced_build(model), None, scale)
+    cut_run = _run(traced_build(model), cut, scale)
     assert cut_run.ok
     assert cut_run.check.moving_s > healthy.check.moving_s + 3.0  # the power-up window
     assert cut_run.check.period_mean <= 1.2 * healthy.check.period_mean
 
 
-def test_an_nn_chain_wire_cut_from_power_up_has_its_documented_reference(builtin_build) -> None:
+def test_an_nn_chain_wire_cut_from_power_up_has_its_documented_reference(traced_build) -> None:
     """nnsin ``--cut 0.0-0.1``: every module but 0.1 as with ``--fail 0.1``, 0.1 as its
     upstream failed (docs/link-redesign.md §2.6); it was compared with the healthy reference
     and always reported DIFFERENT."""
-    report = _run(builtin_build("nnsin"), "0.0-0.1", 1.0)
+    report = _run(traced_build("nnsin"), "0.0-0.1", 1.0)
     assert report.ok, report.check.first_mismatch
     assert any("upstream failed" in n for n in report.check.notes)

@@ -11,10 +11,11 @@ strict xfails (docs/link-redesign.md §2.4).
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import BuiltinBuild
+from conftest import TracedBuild
 
 from bstool.buildfile import Build
 from bstool.controllers import load_controller
@@ -34,9 +35,9 @@ T = 8
 
 
 @pytest.fixture(scope="module")
-def builds(builtin_build: BuiltinBuild) -> dict[str, Build]:
+def builds(traced_build: TracedBuild) -> dict[str, Build]:
     return {
-        m: load_build(builtin_build(m)) for m in ("ca1d", "ca2dsing", "ca2ddiff", "nnsin", "nnsig")
+        m: load_build(traced_build(m)) for m in ("ca1d", "ca2dsing", "ca2ddiff", "nnsin", "nnsig")
     }
 
 
@@ -168,6 +169,49 @@ def test_an_nn_wait_is_counted_only_while_the_module_is_off() -> None:
     times = [round(t * ns) for t in (0.245, 0.868, 1.447, 1.858, 4.698, 8.281, 8.596)]
     assert _wait(times, 2.0, 5.0) == (3, times[4])
     assert _wait(times, 2.0, None) == (4, times[5])  # by lengths alone: the rejoin's transition
+
+
+def test_an_nn_wait_is_not_a_transition_left_on_a_state_the_module_had_shown() -> None:
+    """Traced 2026-12-07 (nnsig-rand-s1 of the re-ship campaign, tests/data/reship/, lead off
+    2.0-2.1 s): the lead showed S^4 at 1.987 s, so 0.1 had taken it (protocol/link.md §4.6:
+    a module shows S^(t+1) once every master wire TOOK it) and showed S^4 at 2.055 s, an
+    ordinary transition; its wait for the lead's S^5 is transition 4, left at 2.688 s, after
+    the boot. By lengths until the boot alone (0.055 s against 0.045 s) it was transition 3,
+    left before the boot: "went on", a long outage the twin's states contradict."""
+    ns = 1_000_000_000
+    times = [round(t * ns) for t in (0.058, 0.638, 1.156, 1.734, 2.055, 2.688, 3.202)]
+    assert _wait(times, 2.0, 2.1, 4) == (4, times[5])
+    assert _wait(times, 2.0, 2.1) == (3, times[4])  # by lengths alone
+
+
+@pytest.fixture(scope="module")
+def reship_nnsig(tmp_path_factory: pytest.TempPathFactory) -> Build:
+    """nnsig-rand-s1 of campaigns/reship-2026-12-07 (a frozen copy), compiled."""
+    from bstool.cli import main
+
+    out = tmp_path_factory.mktemp("reship-nnsig") / "build"
+    src = Path(__file__).parent / "data" / "reship" / "nnsig-rand-s1.json"
+    assert main(["compile", str(src), "-o", str(out), "-q"]) == 0
+    return load_build(out)
+
+
+def test_a_short_nn_lead_outage_after_it_showed_a_state_is_waited_for(reship_nnsig: Build) -> None:
+    """nnsig-rand-s1 of the re-ship campaign, lead off 2.0-2.1 s (far shorter than the
+    dead-limit): its neighbours waited, the states equal the healthy reference (before:
+    classified long, --fail-at L0.M0@3 --rejoin L0.M0@4, DIFFERENT for 6 of 30 modules from
+    transition 4)."""
+    transitions = 12
+    perturb = Perturbation(resets=(Reset("0.0", 2.0, 0.1),))
+    twin = RobotTwin(reship_nnsig, physics=False, perturb=perturb)
+    result = twin.run(transitions)
+    outs = outages(twin)
+    assert len(outs) == 1 and not outs[0].long, outs[0].reference_text()
+    want = load_controller(reship_nnsig.controller_file).states(transitions)
+    got = compared_states(result.states, want, outs)
+    bad = [
+        m for m, seq in got.items() if seq[: transitions + 1] != want[:, m.leg, m.module].tolist()
+    ]
+    assert not bad
 
 
 @pytest.mark.slow

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import BuiltinBuild
+from conftest import TracedBuild
 
 from bstool.buildfile import Build
 from bstool.controllers import load_controller
@@ -47,8 +47,8 @@ CASES: dict[str, tuple[Perturbation, float]] = {
 
 
 @pytest.fixture(scope="module")
-def serve_builds(builtin_build: BuiltinBuild) -> dict[str, Build]:
-    return {m: load_build(builtin_build(m)) for m in ("ca1d", "ca2dsing", "nnsin", "nnsig")}
+def serve_builds(traced_build: TracedBuild) -> dict[str, Build]:
+    return {m: load_build(traced_build(m)) for m in ("ca1d", "ca2dsing", "nnsin", "nnsig")}
 
 
 def _assert_exact_with_a_dead_module(
@@ -252,11 +252,11 @@ def test_the_module_after_a_cut_at_this_instant_of_leg_0(serve_builds: dict[str,
 
 
 def test_twin_cli_cuts_a_wire_in_a_running_robot(
-    builtin_build: BuiltinBuild, capsys: pytest.CaptureFixture[str]
+    traced_build: TracedBuild, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from bstool.cli import main
 
-    build = builtin_build("nnsig")
+    build = traced_build("nnsig")
     args = ["twin", str(build), "--cut", "2.2-2.3@2", "--no-physics", "-T", "8", "-q"]
     assert main(args) == 0
     out = capsys.readouterr().out

@@ -56,8 +56,8 @@ CA_CASES = [
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("model", "one_way"), CA_CASES)
-def test_a_ca_one_way_wire_falls_back_to_a_cut(builtin_build, model: str, one_way: str) -> None:
-    report = _run(builtin_build(model), one_way)
+def test_a_ca_one_way_wire_falls_back_to_a_cut(traced_build, model: str, one_way: str) -> None:
+    report = _run(traced_build(model), one_way)
     assert not report.result.stalled
     assert report.ok, report.check.first_mismatch
     notes = " ".join(report.check.notes)
@@ -80,13 +80,13 @@ NN_CASES = [
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("model", "one_way"), NN_CASES)
-def test_an_nn_one_way_wire(builtin_build, model: str, one_way: str) -> None:
-    report = _run(builtin_build(model), one_way)
+def test_an_nn_one_way_wire(traced_build, model: str, one_way: str) -> None:
+    report = _run(traced_build(model), one_way)
     assert report.ok, report.check.first_mismatch or report.result.stalled
 
 
-def test_the_cut_option_parses_one_way_wires(builtin_build, cli) -> None:
-    build = str(builtin_build("ca1d"))
+def test_the_cut_option_parses_one_way_wires(traced_build, cli) -> None:
+    build = str(traced_build("ca1d"))
     bad = cli("twin", build, "--no-physics", "-T", "1", "--cut", "0.1>0.3")
     assert bad.code == 2 and "no wire joins" in bad.err
     bad = cli("twin", build, "--no-physics", "-T", "1", "--cut", "0.1>>0.2")
@@ -99,11 +99,11 @@ def test_the_cut_option_parses_one_way_wires(builtin_build, cli) -> None:
         _parse_cut("0.1>0.2@x", 5, 6)
 
 
-def test_clocks_beyond_the_uart_tolerance_are_named(builtin_build) -> None:
+def test_clocks_beyond_the_uart_tolerance_are_named(traced_build) -> None:
     """``--clock-spread 0.05``: neighbours drawn more than 4 % apart make a wire one-way; the
     twin names the pair and the ratio (it used to compare with the healthy reference without a
     word) and compares that wire as one-way from power-up."""
-    build = load_build(builtin_build("ca1d"))
+    build = load_build(traced_build("ca1d"))
     perturb = Perturbation(clock_spread=0.05, seed=3)
     options = TwinOptions(transitions=4, physics=False, perturb=perturb, seed=3)
     report = run_twin(build, options)

@@ -15,11 +15,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import traced_controller
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bstool import timingfile as tf
-from bstool.builtin import builtin_controller
 from bstool.errors import DeviceError
 from bstool.probe import fit, measure
 from bstool.probe import program as P
@@ -249,7 +249,7 @@ def _ratio_file(tmp_path: Path, ratio: float) -> Path:
 
 
 def test_compile_timing_changes_the_estimates(cli: Callable[..., Any], tmp_path: Path) -> None:
-    ctrl = str(builtin_controller("ca1d"))
+    ctrl = str(traced_controller("ca1d"))
     slow = _ratio_file(tmp_path, 1.8)
     assert cli("compile", ctrl, "-o", str(tmp_path / "a"), "-q").code == 0
     assert cli("compile", ctrl, "-o", str(tmp_path / "b"), "-q", "--timing", str(slow)).code == 0
@@ -285,9 +285,9 @@ def test_the_twin_takes_the_file(tmp_path: Path) -> None:
 
 
 def test_twin_timing_runs(
-    cli: Callable[..., Any], builtin_build: Callable[..., Path], tmp_path: Path
+    cli: Callable[..., Any], traced_build: Callable[..., Path], tmp_path: Path
 ) -> None:
-    build = builtin_build("ca1d")
+    build = traced_build("ca1d")
     f = _ratio_file(tmp_path, 1.2)
     run = cli("twin", str(build), "-T", "3", "--no-physics", "--json", "-q", "--timing", str(f))
     assert run.code in (0, 1), run.err
@@ -360,11 +360,11 @@ def test_an_in_process_twin_says_to_serve_one(cli: Callable[..., Any], tmp_path:
 
 
 def test_stamp_timed_simulator_takes_the_file(
-    cli: Callable[..., Any], builtin_build: Callable[..., Path], tmp_path: Path
+    cli: Callable[..., Any], traced_build: Callable[..., Path], tmp_path: Path
 ) -> None:
     """`simulate --build B --timing F`: the schedule comes from stamps timed by the file (slower
     stamps: a longer measured period), and --timing without --build is refused."""
-    build = builtin_build("ca1d")
+    build = traced_build("ca1d")
     ctrl = str(build / "controller.json")
     plain = cli("simulate", ctrl, "--build", str(build), "-T", "2", "--json", "-q")
     slow = cli("simulate", ctrl, "--build", str(build), "-T", "2", "--json", "-q",

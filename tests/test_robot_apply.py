@@ -8,8 +8,8 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import traced_controller
 
-from bstool.builtin import builtin_controller
 from bstool.controllers import load_controller
 from bstool.errors import InputError
 from bstool.robot import RobotSpec, build_model
@@ -33,7 +33,7 @@ CHANGES = {
 
 @pytest.fixture(scope="module")
 def states() -> np.ndarray:
-    return load_controller(builtin_controller("nnsin")).states(T)
+    return load_controller(traced_controller("nnsin")).states(T)
 
 
 def test_every_physics_field_is_covered() -> None:

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import traced_controller
 
-from bstool.builtin import builtin_controller
 from bstool.cli import COMMANDS
 from bstool.controllers import load_controller
 from bstool.robot import robotfile
@@ -18,7 +18,7 @@ from bstool.sim.simulator import Simulator
 from tests.conftest import CliRun
 
 T = 3
-CTRL = builtin_controller("ca1d")
+CTRL = traced_controller("ca1d")
 ROBOT_TEXT = "friction = 0.7\nmodule_mass = 0.1\n"
 
 
@@ -216,7 +216,7 @@ def test_the_experiment_commands(files: dict[str, Path], cli: Callable[..., CliR
 def test_sensitivity_runs_every_controller_on_the_same_robots(
     files: dict[str, Path], cli: Callable[..., CliRun]
 ) -> None:
-    other = builtin_controller("nnsin")
+    other = traced_controller("nnsin")
     run = cli(
         "sensitivity",
         str(CTRL),

@@ -19,8 +19,8 @@ CONDITIONS = [(0.0, 0.0, 0), (0.01, 0.0, 1), (0.01, 4.0, 1), (0.01, 4.0, 2)]
 
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["ca1d", "ca2dsing", "ca2ddiff", "nnsin", "nnsig"])
-def test_no_healthy_gap_exceeds_the_manifest_bound(builtin_build, model: str) -> None:
-    build = load_build(builtin_build(model))
+def test_no_healthy_gap_exceeds_the_manifest_bound(traced_build, model: str) -> None:
+    build = load_build(traced_build(model))
     # the manifest's figure (the largest module's, what `bstool twin` prints beside the
     # measured gap); a module's own figure estimates its own worst path only
     bound = max(m.timing.longest_servo_gap_s for m in build.manifest.modules)
@@ -33,8 +33,8 @@ def test_no_healthy_gap_exceeds_the_manifest_bound(builtin_build, model: str) ->
         assert not over, (noise, spread, seed, over)
 
 
-def test_a_reset_is_an_outage_not_a_servo_gap(builtin_build) -> None:
-    build = load_build(builtin_build("ca2dsing"))
+def test_a_reset_is_an_outage_not_a_servo_gap(traced_build) -> None:
+    build = load_build(traced_build("ca2dsing"))
     perturb = Perturbation(resets=(Reset("2.3", 2.0, 0.4),))
     report = run_twin(build, TwinOptions(transitions=8, physics=False, perturb=perturb))
     check = report.check

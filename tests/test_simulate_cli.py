@@ -90,10 +90,11 @@ def test_builtin_evolved_controllers_replay_their_fitness(
 def test_stamp_timed_period_comes_from_the_run_unless_given(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from bstool.builtin import builtin_controller
+    from conftest import traced_controller
+
     from bstool.compile.build import default_period
 
-    data = json.loads(builtin_controller("ca1d").read_text())
+    data = json.loads(traced_controller("ca1d").read_text())
     data["ga"]["period"] = 0.5
     ctrl = tmp_path / "c.json"
     ctrl.write_text(json.dumps(data))
@@ -118,13 +119,14 @@ def test_stamp_timed_needs_the_runs_timing_file(
     """A run evolved with --timing F replays with F; a missing or changed F is a clear error."""
     from dataclasses import replace
 
+    from conftest import traced_controller
+
     from bstool import timingfile
-    from bstool.builtin import builtin_controller
     from bstool.evolve.options import timing_record
 
     timing = tmp_path / "t.json"
     timingfile.dump(timingfile.DEFAULT, timing)
-    data = json.loads(builtin_controller("ca1d").read_text())
+    data = json.loads(traced_controller("ca1d").read_text())
     data["ga"]["timing"] = timing_record(timing)
     ctrl = tmp_path / "c.json"
     ctrl.write_text(json.dumps(data))
@@ -142,10 +144,11 @@ def test_stamp_timed_needs_the_runs_timing_file(
 def test_stamp_timed_refuses_a_states_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from bstool.builtin import builtin_controller
+    from conftest import traced_controller
+
     from bstool.controllers import load_controller
 
-    states = load_controller(builtin_controller("ca1d")).states(2)
+    states = load_controller(traced_controller("ca1d")).states(2)
     path = tmp_path / "s.json"
     path.write_text(json.dumps(np.asarray(states).tolist()))
     code, _, err = run_cli(["simulate", str(path), "--stamp-timed", "-q"], capsys)
@@ -175,16 +178,17 @@ def test_other_builds_are_the_ones_after_those_it_was_scored_on(
 ) -> None:
     """--other-builds N: the controller on N more builds, each alone; a run scored on one
     model of builds 0 and 1 (the shipped ones) gets builds 2.. (none it was scored on)."""
-    from bstool.builtin import builtin_controller
+    from conftest import traced_controller
+
     from bstool.controllers import load_controller
     from bstool.robot import RobotSpec
     from hil_mock.schedule_model import schedule_model
 
-    args = ["simulate", "--model", "ca1d", "--stamp-timed", "-T", "2", "-q"]
+    args = ["simulate", str(traced_controller("ca1d")), "--stamp-timed", "-T", "2", "-q"]
     code, out, err = run_cli([*args, "--other-builds", "1", "--json"], capsys)
     assert code == 0, err
     got = json.loads(out)
-    ctrl = load_controller(builtin_controller("ca1d"))
+    ctrl = load_controller(traced_controller("ca1d"))
     third = schedule_model("ca1d", builds=3).variants[2]
     want = Simulator(RobotSpec()).run_schedule(third.schedule(ctrl.states(2))).distance
     assert got["other_build_distances"] == [want]
@@ -197,10 +201,11 @@ def test_other_builds_are_the_ones_after_those_it_was_scored_on(
 def test_a_bad_recorded_build_count_is_a_clear_error(
     bad: object, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from bstool.builtin import builtin_controller
+    from conftest import traced_controller
+
     from hil_mock.schedule_model import schedule_model
 
-    data = json.loads(builtin_controller("ca1d").read_text())
+    data = json.loads(traced_controller("ca1d").read_text())
     data["ga"]["schedule_builds"] = bad
     ctrl = tmp_path / "c.json"
     ctrl.write_text(json.dumps(data))
@@ -214,11 +219,12 @@ def test_a_bad_recorded_build_count_is_a_clear_error(
 def test_stamp_timed_period_defaults_to_the_evolved_one() -> None:
     from dataclasses import replace
 
-    from bstool.builtin import builtin_controller
+    from conftest import traced_controller
+
     from bstool.commands.simulate_model import evolved_period
     from bstool.controllers import load_controller
 
-    ctrl = load_controller(builtin_controller("ca1d"))
+    ctrl = load_controller(traced_controller("ca1d"))
     assert evolved_period(ctrl) is None  # shipped: compile's default period
     ga = dict(ctrl.ga or {})
     assert evolved_period(replace(ctrl, ga={**ga, "period": 0.5})) == 0.5

@@ -13,9 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import traced_controller
 
 from bstool import buildfile, fileio
-from bstool.builtin import MODELS, builtin_controller
+from bstool.builtin import MODELS
 from bstool.compile import compile_controller
 from bstool.controllers import CA_MODELS, load_controller
 from bstool.errors import InputError
@@ -27,7 +28,7 @@ SPEC = RobotSpec()
 
 
 def _states(model: str, transitions: int) -> np.ndarray:
-    return load_controller(builtin_controller(model)).states(transitions)
+    return load_controller(traced_controller(model)).states(transitions)
 
 
 def test_a_schedule_at_the_transition_boundaries_is_the_plain_run() -> None:
@@ -120,7 +121,7 @@ def _random_build(model: str, seed: int, tmp: Path) -> Path:
 def test_the_twin_moves_as_the_stamp_timed_simulator(
     model: str,
     which: str,
-    builtin_build,
+    traced_build,
     tmp_path: Path,
 ) -> None:
     """The build's schedule, extracted without physics, played by ``bstool simulate``'s
@@ -128,7 +129,7 @@ def test_the_twin_moves_as_the_stamp_timed_simulator(
     from hil_mock.schedule_extract import simulate_build
     from hil_mock.session import TwinOptions, run_twin
 
-    folder = builtin_build(model) if which == "shipped" else _random_build(model, 9, tmp_path)
+    folder = traced_build(model) if which == "shipped" else _random_build(model, 9, tmp_path)
     build = buildfile.load(folder)
     T = 3
     report = run_twin(build, TwinOptions(transitions=T))
@@ -206,7 +207,7 @@ def test_schedule_model_follows_a_real_build(model: str, tmp_path: Path) -> None
         "ca2ddiff",
     ],
 )
-def test_other_builds_predict_what_a_build_walks(model: str, builtin_build, cli) -> None:
+def test_other_builds_predict_what_a_build_walks(model: str, traced_build, cli) -> None:
     """The controller's mean distance on builds it was not scored on predicts what its own
     build walks, and so does its fitness now that the builds keep in step (protocol/link.md
     §4.2): measured for the shipped controllers 0.4 and 2.0 cm off (ca2dsing, ca2ddiff), the
@@ -214,10 +215,11 @@ def test_other_builds_predict_what_a_build_walks(model: str, builtin_build, cli)
     evolution")."""
     from hil_mock.schedule_extract import simulate_build
 
-    run = cli("simulate", "--model", model, "--stamp-timed", "--other-builds", "4", "--json")
+    run = cli("simulate", str(traced_controller(model)), "--stamp-timed", "--other-builds", "4",
+              "--json")  # fmt: skip
     assert run.code == 0, run.err
     got = json.loads(run.out)
-    build = buildfile.load(builtin_build(model))
+    build = buildfile.load(traced_build(model))
     walked = simulate_build(build, 30)[0].distance
     predicted = float(np.mean(got["other_build_distances"]))
     assert abs(predicted - walked) < 0.05
@@ -226,7 +228,7 @@ def test_other_builds_predict_what_a_build_walks(model: str, builtin_build, cli)
 
 
 def _copy_shipped(model: str, tmp: Path) -> Path:
-    compile_controller(builtin_controller(model), tmp / f"shipped-{model}")
+    compile_controller(traced_controller(model), tmp / f"shipped-{model}")
     return tmp / f"shipped-{model}"
 
 
@@ -234,9 +236,9 @@ def _copy_shipped(model: str, tmp: Path) -> Path:
 
 
 @pytest.mark.slow
-def test_simulate_build_and_twin_json_agree(cli, builtin_build) -> None:
-    folder = builtin_build("nnsig")
-    sim = cli("simulate", str(builtin_controller("nnsig")), "--build", str(folder), "-T", "2",
+def test_simulate_build_and_twin_json_agree(cli, traced_build) -> None:
+    folder = traced_build("nnsig")
+    sim = cli("simulate", str(traced_controller("nnsig")), "--build", str(folder), "-T", "2",
               "--json")  # fmt: skip
     assert sim.code == 0, sim.err
     out = json.loads(sim.out)
@@ -247,7 +249,7 @@ def test_simulate_build_and_twin_json_agree(cli, builtin_build) -> None:
     assert report["stamp_distance"] == pytest.approx(out["distance"], abs=1e-12)
     assert report["twin_distance"] == pytest.approx(out["distance"], abs=1e-12)
     assert report["sim_distance"] is not None
-    other = cli("simulate", str(builtin_controller("ca1d")), "--build", str(folder))
+    other = cli("simulate", str(traced_controller("ca1d")), "--build", str(folder))
     assert other.code != 0 and "not the controller" in other.err
     video = cli("simulate", "--build", str(folder), "--video", "x.mp4")
     assert video.code != 0 and "does not combine" in video.err
@@ -361,7 +363,7 @@ def test_report_stamp_timed_runs_every_experiment_on_the_schedule(cli, tmp_path:
     from bstool.sim.batch import BatchEvaluator
     from hil_mock.schedule_model import schedule_model
 
-    src = builtin_controller("ca1d")
+    src = traced_controller("ca1d")
     args = [str(src), "-T", "4", "--extrapolate", "4", "--workers", "1", "-q"]
     bad = cli("report", *args, "--period", "0.5", "-o", str(tmp_path / "bad"))
     assert bad.code == 2 and "--stamp-timed" in bad.err

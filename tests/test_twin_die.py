@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import BuiltinBuild
+from conftest import TracedBuild
 
 from bstool.cli import main
 from bstool.compile import emulate
@@ -29,8 +29,8 @@ SWITCH_OVER = 12  # transitions after the death until the dead-limit (>= 1.5 s; 
 
 
 @pytest.fixture(scope="module", params=["ca2ddiff", "nnsin"])
-def build(request: pytest.FixtureRequest, builtin_build: BuiltinBuild) -> Path:
-    return builtin_build(request.param)
+def build(request: pytest.FixtureRequest, traced_build: TracedBuild) -> Path:
+    return traced_build(request.param)
 
 
 @pytest.mark.slow
@@ -74,8 +74,8 @@ def test_dying_at_0_and_limp(build: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def nnsin_build(builtin_build: BuiltinBuild) -> Path:
-    return builtin_build("nnsin")
+def nnsin_build(traced_build: TracedBuild) -> Path:
+    return traced_build("nnsin")
 
 
 @pytest.mark.parametrize(

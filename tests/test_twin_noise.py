@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import BuiltinBuild
+from conftest import TracedBuild, traced_controller
 
-from bstool.builtin import builtin_controller
 from bstool.controllers import load_controller
 from bstool.wire import link
 from hil_mock.robot import RobotTwin, load_build
@@ -23,9 +22,9 @@ SEED = 7
 
 
 @pytest.mark.parametrize("model", ["ca2ddiff", "nnsin"])
-def test_noisy_links_keep_the_states_exact(model: str, builtin_build: BuiltinBuild) -> None:
-    source = builtin_controller(model)
-    build = load_build(builtin_build(model))
+def test_noisy_links_keep_the_states_exact(model: str, traced_build: TracedBuild) -> None:
+    source = traced_controller(model)
+    build = load_build(traced_build(model))
     twin = RobotTwin(build, noise=NOISE, seed=SEED, physics=False)
     result = twin.run(TRANSITIONS)
     assert sum(twin.noise_events.values()) >= 5  # the noise really hit the links

@@ -7,10 +7,9 @@ import json
 from collections.abc import Callable
 
 import pytest
-from conftest import BuiltinBuild, CliRun
+from conftest import CliRun, TracedBuild, traced_controller
 
 from bstool import buildfile
-from bstool.builtin import builtin_controller
 from bstool.controllers import load_controller
 from bstool.robot import RobotSpec
 from bstool.sim.simulator import Simulator
@@ -20,17 +19,17 @@ PERIOD = 0.6  # the default is RobotSpec().transition_time (0.475 s)
 
 
 def test_twin_after_compile_period_compares_with_that_period(
-    builtin_build: BuiltinBuild, cli: Callable[..., CliRun]
+    traced_build: TracedBuild, cli: Callable[..., CliRun]
 ) -> None:
     assert RobotSpec().transition_time != PERIOD
-    root = builtin_build("ca1d", period=PERIOD)
+    root = traced_build("ca1d", period=PERIOD)
     build = buildfile.load(root)
     assert build.period == PERIOD
     assert reference_simulator(build).transition_time == PERIOD
     run = cli("twin", str(root), "-T", "2", "--json", "-q")
     assert run.code == 0, run.err
     out = json.loads(run.out)
-    states = load_controller(builtin_controller("ca1d")).states(2)
+    states = load_controller(traced_controller("ca1d")).states(2)
     settle = settle_seconds(build)
     at_period = Simulator(RobotSpec(), transition_time=PERIOD, settle_time=settle).run(states)
     at_default = Simulator(RobotSpec(), settle_time=settle).run(states)

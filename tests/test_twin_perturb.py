@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import traced_controller
 
-from bstool.builtin import builtin_controller
 from bstool.cli import main
 from bstool.controllers import load_controller
 from bstool.errors import InputError
@@ -30,7 +30,7 @@ T = 6
 @pytest.fixture(scope="module")
 def build(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("ca1d") / "build"
-    assert main(["compile", str(builtin_controller("ca1d")), "-o", str(out), "-q"]) == 0
+    assert main(["compile", str(traced_controller("ca1d")), "-o", str(out), "-q"]) == 0
     return out
 
 
@@ -172,7 +172,7 @@ def test_nnsin_stays_exact_under_spreads(
 ) -> None:
     out = tmp_path_factory.getbasetemp() / "nnsin-build"
     if not out.is_dir():
-        assert main(["compile", str(builtin_controller("nnsin")), "-o", str(out), "-q"]) == 0
+        assert main(["compile", str(traced_controller("nnsin")), "-o", str(out), "-q"]) == 0
     b = load_build(out)
     result = RobotTwin(b, physics=False, perturb=p).run(T)
     assert result.stalled == []

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import traced_controller
 
 from bstool.buildfile import Build
-from bstool.builtin import MODELS, builtin_controller
+from bstool.builtin import MODELS
 from bstool.compile import compile_controller
 from bstool.controllers import load_controller
 from bstool.moduleid import ModuleId
@@ -55,7 +56,7 @@ def builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Build]:
     out: dict[str, Build] = {}
     for model in MODELS:
         folder = Path(root) / model
-        compile_controller(builtin_controller(model), folder)
+        compile_controller(traced_controller(model), folder)
         out[model] = load_build(folder)
     return out
 

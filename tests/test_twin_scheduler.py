@@ -52,8 +52,8 @@ CASES = {
 @pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES))
 @pytest.mark.parametrize("model", ["ca2dsing", "nnsin"])
-def test_the_local_scheduler_changes_nothing(model: str, case: str, builtin_build) -> None:
-    build = buildfile.load(builtin_build(model))
+def test_the_local_scheduler_changes_nothing(model: str, case: str, traced_build) -> None:
+    build = buildfile.load(traced_build(model))
     runs = []
     for cls in (RobotTwin, GlobalSchedulerTwin):
         twin = cls(build, physics=False, **CASES[case])

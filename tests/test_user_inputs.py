@@ -8,9 +8,9 @@ import os
 from pathlib import Path
 
 import pytest
+from conftest import traced_controller
 
 from bstool import fileio
-from bstool.builtin import builtin_controller
 from bstool.cli import main
 from bstool.controllers.controller import _kind
 from bstool.errors import InputError
@@ -19,7 +19,7 @@ COMMANDS = ["states", "simulate", "compile"]
 
 
 def _controller() -> dict[str, object]:
-    return json.loads(Path(builtin_controller("nnsin")).read_text())
+    return json.loads(Path(traced_controller("nnsin")).read_text())
 
 
 def _args(cmd: str, path: Path, tmp_path: Path) -> list[str]:

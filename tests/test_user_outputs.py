@@ -13,8 +13,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import traced_controller
 
-from bstool.builtin import builtin_controller
 from bstool.cli import main
 
 TOKENIZER_VECTORS = Path(__file__).parent / "vectors" / "tokenizer"
@@ -27,7 +27,7 @@ HISTORY = "generation,best,mean,population,evaluations\n0,0.02,0.01,main,10\n"
 @pytest.fixture
 def ctrl(tmp_path: Path) -> Path:
     path = tmp_path / "nnsin.json"
-    shutil.copy(builtin_controller("nnsin"), path)
+    shutil.copy(traced_controller("nnsin"), path)
     return path
 
 
@@ -94,7 +94,7 @@ REPORT = ["-T", "1", "--extrapolate", "2", "-q", "--workers", "1"]
 def _run_dir(tmp_path: Path) -> Path:
     run = tmp_path / "runs" / "nnsin"
     run.mkdir(parents=True)
-    shutil.copy(builtin_controller("nnsin"), run / "best.json")
+    shutil.copy(traced_controller("nnsin"), run / "best.json")
     (run / "history.csv").write_text(HISTORY)
     (run / "checkpoint.npz").write_bytes(b"precious")
     return run

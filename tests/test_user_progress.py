@@ -7,8 +7,8 @@ import shutil
 from pathlib import Path
 
 import pytest
+from conftest import traced_controller
 
-from bstool.builtin import builtin_controller
 from bstool.cli import main
 from bstool.experiments.common import unique_labels
 from bstool.experiments.progress import ENV
@@ -16,7 +16,7 @@ from bstool.experiments.progress import ENV
 
 def _copy(dest: Path, model: str = "nnsin") -> Path:
     dest.parent.mkdir(parents=True, exist_ok=True)
-    shutil.copy(builtin_controller(model), dest)
+    shutil.copy(traced_controller(model), dest)
     return dest
 
 
