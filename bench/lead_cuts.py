@@ -11,7 +11,8 @@ and the bypass (L.0-L.2, NN). Each run is compared with the reference the twin p
 (docs/twin.md "--cut"): CA each end reads the other's R^0; NN every module but B as with
 ``--fail B``, B as with its upstream failed. A row per model and timing scale: runs exact,
 runs in which some module stalled, and the running period with the cut against the period of
-the same build without it (the mean over the periods that began once every module had moved,
+the same build without it over the same modules and transitions (the mean over the periods
+that began once every module had moved,
 :meth:`hil_mock.twin_result.TwinResult.running_period_stats`: the start-up, which a wire silent
 from power-up lengthens by the power-up window, is reported apart). A summary line closes it.
 """
@@ -45,6 +46,7 @@ class Run:
     stalled: int
     period: float  # the running period (s)
     moving: float  # when every module had made its first transition (s)
+    spans: tuple[tuple[str, int, float], ...] = ()  # (module, transition, s) of the running periods
 
     @property
     def label(self) -> str:
@@ -67,9 +69,27 @@ def run_one(root: str, model: str, scale: float, cut: tuple[ModuleId, ModuleId] 
         perturb=Perturbation(timing_scale=scale),
     )
     report = run_twin(load_build(root), options)
-    period, _ = report.result.running_period_stats()
-    return Run(model, scale, cut, report.ok, len(report.result.stalled), period,
-               report.result.moving_s)  # fmt: skip
+    result = report.result
+    period, _ = result.running_period_stats()
+    spans = tuple(
+        (mid.label, len(result.periods[mid]) - len(ps) + i, p)
+        for mid, ps in result.running_periods.items()
+        for i, p in enumerate(ps)
+    )
+    return Run(model, scale, cut, report.ok, len(result.stalled), period, result.moving_s, spans)
+
+
+def same_transitions_ratio(run: Run, base: Run) -> float:
+    """The cut run's running period against the uncut run's over the same modules and
+    transitions. A module cut off from power-up may start seconds late, leaving only the last
+    few transitions in the running window, and a gait's period moves from transition to
+    transition with its pulse widths (nnsig 2026-12-07, timing scale 1.5: 0.43-0.57 s), so the
+    uncut run's whole-run mean is not the yardstick for those few."""
+    ref = {(m, i): p for m, i, p in base.spans}
+    pairs = [(p, ref[m, i]) for m, i, p in run.spans if (m, i) in ref]
+    if not pairs:
+        return run.period / base.period
+    return sum(p for p, _ in pairs) / sum(q for _, q in pairs)
 
 
 def sweep(args: argparse.Namespace, roots: dict[str, Path]) -> list[Run]:
@@ -95,7 +115,8 @@ def sweep(args: argparse.Namespace, roots: dict[str, Path]) -> list[Run]:
 
 def table(runs: list[Run]) -> list[str]:
     lines = ["| model | timing scale | exact | stalled | period without cut (s) | "
-             "period with a cut: median / largest (s) | largest ratio | worst wire |",
+             "period with a cut: median / largest (s) | "
+             "largest ratio: same transitions (whole run) | worst wire |",
              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     keys = sorted({(r.model, r.scale) for r in runs}, key=lambda k: (MODELS.index(k[0]), k[1]))
     for model, scale in keys:
@@ -103,12 +124,13 @@ def table(runs: list[Run]) -> list[str]:
         base = next(r for r in rows if r.cut is None)
         cut = [r for r in rows if r.cut is not None]
         periods = sorted(r.period for r in cut)
-        worst = max(cut, key=lambda r: r.period)
+        worst = max(cut, key=lambda r: same_transitions_ratio(r, base))
         lines.append(
             f"| {model} | {scale:g} | {sum(r.exact for r in cut)}/{len(cut)} | "
             f"{sum(r.stalled > 0 for r in cut)} | {base.period:.3f} | "
-            f"{periods[len(periods) // 2]:.3f} / {worst.period:.3f} | "
-            f"{worst.period / base.period:.2f} | {worst.label} |"
+            f"{periods[len(periods) // 2]:.3f} / {periods[-1]:.3f} | "
+            f"{same_transitions_ratio(worst, base):.2f} ({periods[-1] / base.period:.2f}) | "
+            f"{worst.label} |"
         )
     return lines
 
@@ -136,13 +158,15 @@ def main() -> None:
     print(f"T = {args.transitions}, no physics; runs per cell: every lead wire cut from power-up")
     print("\n".join(table(runs)))
     cut = [r for r in runs if r.cut is not None]
-    bases = {(r.model, r.scale): r.period for r in runs if r.cut is None}
-    ratio = max(r.period / bases[r.model, r.scale] for r in cut)
+    bases = {(r.model, r.scale): r for r in runs if r.cut is None}
+    ratio = max(same_transitions_ratio(r, bases[r.model, r.scale]) for r in cut)
+    whole = max(r.period / bases[r.model, r.scale].period for r in cut)
     exact = sum(r.exact for r in cut)
     stalled = sum(r.stalled > 0 for r in cut)
     ok = exact == len(cut) and not stalled and ratio <= RATIO_LIMIT
     print(f"{exact} of {len(cut)} cut runs exact, {stalled} with a stall, largest period ratio "
-          f"{ratio:.2f} (limit {RATIO_LIMIT}): {'OK' if ok else 'FAIL'}; "
+          f"{ratio:.2f} over the same transitions (limit {RATIO_LIMIT}; {whole:.2f} against the "
+          f"uncut run's whole-run mean): {'OK' if ok else 'FAIL'}; "
           f"{time.perf_counter() - t0:.0f} s")  # fmt: skip
 
 
