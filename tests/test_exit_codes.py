@@ -256,6 +256,10 @@ def test_a_mismatch_says_how_many_modules_from_which_transition(files: dict[str,
     assert f"{len(differ)} of 30 modules, from transition {earliest}" in text
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("command", ["evolve", "twin"])
 def test_ctrl_c_is_130(command: str, files: dict[str, Path]) -> None:
     args = {
@@ -280,6 +284,9 @@ def test_ctrl_c_is_130(command: str, files: dict[str, Path]) -> None:
         stderr=subprocess.PIPE,
         text=True,
         stdin=subprocess.DEVNULL,
+        # a shell that starts a job in the background ignores SIGINT in it, and Python then
+        # never raises KeyboardInterrupt: give the child the default as a terminal would
+        preexec_fn=_default_sigint,
     )
     marker = files["dir"] / "interrupted" / "checkpoint.npz"
     deadline = time.monotonic() + 120
