@@ -46,7 +46,7 @@ class Run:
     stalled: int
     period: float  # the running period (s)
     moving: float  # when every module had made its first transition (s)
-    spans: tuple[tuple[str, int, float], ...] = ()  # (module, transition, s) of the running periods
+    spans: tuple[tuple[str, int, float], ...] = ()  # (module, period index, s) of running periods
 
     @property
     def label(self) -> str:
@@ -116,7 +116,8 @@ def sweep(args: argparse.Namespace, roots: dict[str, Path]) -> list[Run]:
 def table(runs: list[Run]) -> list[str]:
     lines = ["| model | timing scale | exact | stalled | period without cut (s) | "
              "period with a cut: median / largest (s) | "
-             "largest ratio: same transitions (whole run) | worst wire |",
+             "largest ratio: same transitions (largest against the whole run) | "
+             "wire of the first |",
              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     keys = sorted({(r.model, r.scale) for r in runs}, key=lambda k: (MODELS.index(k[0]), k[1]))
     for model, scale in keys:

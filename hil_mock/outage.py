@@ -279,7 +279,8 @@ def _wait(
     times_ns: list[int], off_s: float, booted_s: float | None, had: int = -1
 ) -> tuple[int, float] | None:
     """(W_N, when N left it, ns) of a neighbour with these transition times: of the transition
-    it showed at the power-off and the next, the one that lasted longer after it. With
+    it showed at the power-off (NN: or ``had``, below) and the next, the one that lasted longer
+    after it. With
     ``booted_s`` (NN) only the time until the boot counts: after it comes the rejoin, not a
     wait for the module, and an NN leg's transition after a long outage can outlast the
     dead-limit wait before it (CA's join is told apart by its WELCOMEs instead). ``had`` (NN):
@@ -287,13 +288,17 @@ def _wait(
     one, so it waited in ``had`` at the earliest (N in W waits for S^(W + 1)): a transition
     N left on a state it already had is no wait (traced 2026-12-07: nnsig lead off 0.1 s at
     2 s, 0.1 showed S^4 at 2.055 s on the S^4 the lead had shown at 1.987 s; both spans were
-    cut by the boot, and the longer of the two was that ordinary transition)."""
+    cut by the boot, and the longer of the two was that ordinary transition). A ``had`` that N
+    never showed in the run (N behind at the end, or off itself then) leaves the rule by
+    lengths alone."""
     off = off_s * NS
     back = math.inf if booted_s is None else booted_s * NS
     shown = [i for i, t in enumerate(times_ns) if 0 <= t <= off]
     if not shown:
         return None
-    s = max(shown[-1], had)
+    s = shown[-1]
+    if s < had < len(times_ns) and times_ns[had] >= 0:
+        s = had
 
     def end(w: int) -> float:
         return times_ns[w + 1] if w + 1 < len(times_ns) and times_ns[w + 1] >= 0 else math.inf

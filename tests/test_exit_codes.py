@@ -256,10 +256,6 @@ def test_a_mismatch_says_how_many_modules_from_which_transition(files: dict[str,
     assert f"{len(differ)} of 30 modules, from transition {earliest}" in text
 
 
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 @pytest.mark.parametrize("command", ["evolve", "twin"])
 def test_ctrl_c_is_130(command: str, files: dict[str, Path]) -> None:
     args = {
@@ -278,16 +274,20 @@ def test_ctrl_c_is_130(command: str, files: dict[str, Path]) -> None:
         ],
         "twin": ["twin", str(files["build"]), "-T", "200", "-q"],
     }[command]
-    proc = subprocess.Popen(
-        [console_script(), *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        stdin=subprocess.DEVNULL,
-        # a shell that starts a job in the background ignores SIGINT in it, and Python then
-        # never raises KeyboardInterrupt: give the child the default as a terminal would
-        preexec_fn=_default_sigint,
-    )
+    # a shell that starts a job in the background ignores SIGINT in it, and a Python child
+    # would then never raise KeyboardInterrupt: a handled signal is reset to the default at
+    # exec, so the child starts with SIGINT as under a terminal
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        proc = subprocess.Popen(
+            [console_script(), *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            stdin=subprocess.DEVNULL,
+        )
+    finally:
+        signal.signal(signal.SIGINT, old)
     marker = files["dir"] / "interrupted" / "checkpoint.npz"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:  # evolve: interrupt once a generation is saved

@@ -182,6 +182,7 @@ def test_an_nn_wait_is_not_a_transition_left_on_a_state_the_module_had_shown() -
     times = [round(t * ns) for t in (0.058, 0.638, 1.156, 1.734, 2.055, 2.688, 3.202)]
     assert _wait(times, 2.0, 2.1, 4) == (4, times[5])
     assert _wait(times, 2.0, 2.1) == (3, times[4])  # by lengths alone
+    assert _wait(times[:4], 2.0, 2.1, 4) == _wait(times[:4], 2.0, 2.1)  # 4 never shown by N
 
 
 @pytest.fixture(scope="module")
