@@ -178,7 +178,7 @@ def main() -> None:
     ap.add_argument(
         "--init-shipped",
         action="store_true",
-        help="start every run from the shipped gait (evolve --init)",
+        help="start every run from the baseline gait (evolve --init; see --baseline)",
     )
     ap.add_argument(
         "--baseline",

@@ -160,12 +160,13 @@ def outages(twin: RobotTwin) -> list[Outage]:
             booted = boots[k] if k < len(boots) else None
             # NN: c shows S^t once every master wire TOOK it (protocol/link.md §4.6), so its
             # downstream had its states up to the last one it showed before the power-off
-            had = len(rec.before[k] if k < len(rec.before) else rec.states) - 1
-            nn = (booted, had) if twin._nn else (None, -1)
+            before_off = rec.before[k] if k < len(rec.before) else rec.states
+            had = len(before_off) - 1 if twin._nn else -1
+            until = booted if twin._nn else None
             waits = {
                 n: w
                 for n in readers(twin, mid)
-                if (w := _wait(twin.records[n].times_ns, off_s, *nn))
+                if (w := _wait(twin.records[n].times_ns, off_s, until, had))
             }
             back = math.inf if booted is None else booted * NS
             # CA: N went on when it left its wait before it WELCOMEd c (a dead-limit can fire
@@ -278,18 +279,17 @@ def ca_readers(twin: RobotTwin, mid: ModuleId) -> frozenset[ModuleId]:
 def _wait(
     times_ns: list[int], off_s: float, booted_s: float | None, had: int = -1
 ) -> tuple[int, float] | None:
-    """(W_N, when N left it, ns) of a neighbour with these transition times: of the transition
-    it showed at the power-off (NN: or ``had``, below) and the next, the one that lasted longer
-    after it. With
-    ``booted_s`` (NN) only the time until the boot counts: after it comes the rejoin, not a
-    wait for the module, and an NN leg's transition after a long outage can outlast the
-    dead-limit wait before it (CA's join is told apart by its WELCOMEs instead). ``had`` (NN):
-    the last transition the module showed before the power-off; N took its states up to that
-    one, so it waited in ``had`` at the earliest (N in W waits for S^(W + 1)): a transition
-    N left on a state it already had is no wait (traced 2026-12-07: nnsig lead off 0.1 s at
-    2 s, 0.1 showed S^4 at 2.055 s on the S^4 the lead had shown at 1.987 s; both spans were
-    cut by the boot, and the longer of the two was that ordinary transition). A ``had`` that N
-    never showed in the run (N behind at the end, or off itself then) leaves the rule by
+    """(W_N, when N left it, ns) of a neighbour with these transition times: of the transition it
+    showed at the power-off (NN: or ``had``, below) and the next, the one that lasted longer
+    after it. With ``booted_s`` (NN) only the time until the boot counts: after it comes the
+    rejoin, not a wait for the module, and an NN leg's transition after a long outage can
+    outlast the dead-limit wait before it (CA's join is told apart by its WELCOMEs instead).
+    ``had`` (NN): the last transition the module showed before the power-off; N took its states
+    up to that one, so it waited in ``had`` at the earliest (N in W waits for S^(W + 1)): a
+    transition N left on a state it already had is no wait (traced 2026-12-07: nnsig lead off
+    0.1 s at 2 s, 0.1 showed S^4 at 2.055 s on the S^4 the lead had shown at 1.987 s; both spans
+    were cut by the boot, and the longer of the two was that ordinary transition). A ``had``
+    that N never showed in the run (N behind at the end, or off itself then) leaves the rule by
     lengths alone."""
     off = off_s * NS
     back = math.inf if booted_s is None else booted_s * NS
