@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from bstool.campaign import claims as cl
+from bstool.campaign import report as campaign_report
 from bstool.campaign import stats
 
 # -- the verdict rules ---------------------------------------------------------------------
@@ -90,6 +91,41 @@ def test_claims_on_made_up_runs() -> None:
     )
 
 
+def test_the_claims_on_the_uncertain_robot_read_the_box_mean() -> None:
+    base = [0.30, 0.31, 0.32, 0.33, 0.34]
+    # nominal: nnsin furthest and ca2ddiff the best CA; on the box the order turns around
+    runs = _runs({
+        "nnsin": [x + 0.2 for x in base], "nnsig": base, "ca1d": base,
+        "ca2dsing": [x + 0.001 for x in base], "ca2ddiff": [x + 0.1 for x in base],
+    })  # fmt: skip
+    box = {"nnsin": 0.05, "nnsig": 0.02, "ca1d": 0.25, "ca2dsing": 0.2505, "ca2ddiff": 0.10}
+    for model, rs in runs.items():
+        for i, r in enumerate(rs):
+            r.results["sensitivity"] = {"mean": box[model] + 0.001 * i, "kept": 0.5}
+    nominal = cl.evaluate(runs, list(runs), {"sensitivity"})
+    uncertain = cl.evaluate_uncertain(runs, list(runs), {"sensitivity"})
+    assert [c.key for c in uncertain] == [
+        "ca2dsing-comparable-to-ca1d", "ca2ddiff-best-ca", "nnsin-furthest",
+        "nnsin-above-nnsig", "nnsig-slowest",
+    ]  # fmt: skip
+    assert _claim(nominal, "nnsin-furthest").verdict == stats.HOLDS
+    assert _claim(uncertain, "nnsin-furthest").verdict == stats.FAILS  # ca1d walks further
+    assert _claim(uncertain, "ca2ddiff-best-ca").verdict == stats.FAILS
+    assert _claim(uncertain, "nnsin-above-nnsig").verdict == stats.HOLDS
+    assert _claim(uncertain, "nnsig-slowest").verdict == stats.HOLDS
+    assert _claim(uncertain, "ca2dsing-comparable-to-ca1d").verdict == stats.HOLDS
+    row = _claim(uncertain, "nnsin-furthest").rows[0]
+    assert row.a.mean == pytest.approx(0.052)  # the box means, not the fitness
+    table = {u["key"]: u for u in campaign_report.survival(nominal, uncertain)}
+    assert table["nnsin-furthest"] == {
+        "key": "nnsin-furthest", "nominal": stats.HOLDS, "uncertain": stats.FAILS,
+    }  # fmt: skip
+    assert table["nnsig-slowest"]["nominal"] == stats.UNCLEAR  # no d_30 in these made-up runs
+    lacking = cl.evaluate_uncertain(runs, list(runs), set())
+    assert {c.verdict for c in lacking} == {cl.NOT_TESTED}
+    assert lacking[0].missing == "the plan has no [analyses] sensitivity"
+
+
 # -- a small campaign's report -------------------------------------------------------------
 
 PLAN = """format = "bstool.campaign/1"
@@ -146,6 +182,9 @@ def test_the_report(folder: Path, cli: Any) -> None:
         for row in c["rows"]:
             if row["test"] is not None:
                 assert 0 <= row["test"]["p"] <= 1
+    assert [u["key"] for u in report["survival"]] == [c["key"] for c in report["uncertain_claims"]]
+    assert "nnsin-above-nnsig" in {c["key"] for c in report["uncertain_claims"]}
+    assert "## The claims on the uncertain robot" in (folder / "report" / "tables.md").read_text()
     figures = {n for n in report["figures"].values() if n}
     assert {"fitness.png", "faults.png", "paths.png", "extrapolation.png", "initial-states.png",
             "gait-nnsig.png", "state-changes.png", "sensitivity.png"} <= figures  # fmt: skip

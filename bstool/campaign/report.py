@@ -92,6 +92,7 @@ def _metrics(d: cl.RunData) -> dict[str, float | None]:
         "sway": cl.sway(d),
         "clustered": cl.clustered(d),
         "uncertain_kept": cl.uncertain_kept(d),
+        "box_mean": cl.box_mean(d),
     }
     for k in sorted(cl.lookup(d, "initial-states", "k") or {}, key=int):
         out[f"kept_{k}"] = cl.kept(int(k))(d)
@@ -114,6 +115,7 @@ COLUMNS = (
     ("sway", "sway (cm)", 100, 2),
     ("clustered", "ΔS within ±1 (%)", 100, 0),
     ("uncertain_kept", "kept on uncertain robots (%)", 100, 0),
+    ("box_mean", "mean on uncertain robots (cm)", 100, 1),
 )
 
 
@@ -187,6 +189,9 @@ def build(
     by_model = {m: [data[r.name] for r in done if r.spec.model == m] for m in plan.models}
     names = {job.name for r in done for job in an.jobs(plan, data[r.name].transitions)}
     claims = cl.evaluate(by_model, plan.models, names)
+    uncertain = (
+        cl.evaluate_uncertain(by_model, plan.models, names) if plan.analyses.sensitivity else []
+    )
     record = rec.load(base)
     run_rows = [_run_row(r, data.get(r.name), record) for r in runs]
     model_rows = _model_rows(run_rows, plan.models)
@@ -213,6 +218,8 @@ def build(
             "models": model_rows,
             "columns": _columns(model_rows),
             "claims": [c.to_json() for c in claims],
+            "uncertain_claims": [c.to_json() for c in uncertain],
+            "survival": survival(claims, uncertain),
             "figures": shown,
             "sessions": [vars(s) for s in record.sessions],
             "campaign_wall": _hours(record.wall_s),
@@ -225,6 +232,23 @@ def build(
         fileio.write_json(tmp / "report.json", {"format": FORMAT, **context})
         fileio.write_text(tmp / "tables.md", markdown(context))
     return target / "index.html"
+
+
+def _verdict(c: cl.Claim) -> str:
+    return c.verdict if c.missing is None else f"not tested: {c.missing}"
+
+
+def survival(claims: Sequence[cl.Claim], uncertain: Sequence[cl.Claim]) -> list[dict[str, str]]:
+    """Per claim judged on the uncertain robot: its verdict there beside the nominal one."""
+    nominal = {c.key: c for c in claims}
+    return [
+        {
+            "key": u.key,
+            "nominal": _verdict(nominal[u.key]) if u.key in nominal else "—",
+            "uncertain": _verdict(u),
+        }
+        for u in uncertain
+    ]
 
 
 def _md_row(cells: Sequence[Any]) -> str:
@@ -244,32 +268,22 @@ def markdown(context: Mapping[str, Any]) -> str:
         "",
         "## The paper's claims",
         "",
-        _md_row(["claim", "paper", "comparison", "first", "second", "U", "p", "row", "verdict"]),
-        "|" + "---|" * 9,
+        *_md_claims(context["claims"]),
     ]
-    for c in context["claims"]:
-        rows = c["rows"] or [None]
-        for i, r in enumerate(rows):
-            head = [f"{c['key']} ({c['where']})", c["paper"]] if i == 0 else ["", ""]
-            verdict = c["verdict"] if not c["missing"] else f"not tested: {c['missing']}"
-            if r is None:
-                lines.append(_md_row([*head, "—", "—", "—", "—", "—", "—", verdict]))
-                continue
-            t = r["test"]
-            lines.append(
-                _md_row(
-                    [
-                        *head,
-                        r["label"],
-                        _fmt(r["a"], c["scale"], c["digits"]),
-                        "—" if r["b"] is None else _fmt(r["b"], c["scale"], c["digits"]),
-                        "—" if t is None else f"{t['u']:.1f}",
-                        _p(None if t is None else t["p"]),
-                        r["verdict"],
-                        f"**{verdict}**" if i == 0 else "",
-                    ]
-                )
-            )
+    if context.get("uncertain_claims"):
+        lines += [
+            "",
+            "## The claims on the uncertain robot",
+            "",
+            "Each run's mean distance over the random robots of its uncertain box (the plan's "
+            "`[analyses] sensitivity`) instead of its distance on the nominal robot.",
+            "",
+            _md_row(["claim", "nominal robot", "uncertain robot"]),
+            "|---|---|---|",
+            *(_md_row([u["key"], u["nominal"], u["uncertain"]]) for u in context["survival"]),
+            "",
+            *_md_claims(context["uncertain_claims"]),
+        ]
     cols = context["columns"]
     lines += [
         "",
@@ -305,6 +319,38 @@ def markdown(context: Mapping[str, Any]) -> str:
     )
     lines += ["", f"Campaign wall time: {context['campaign_wall']}{adopted}.", ""]
     return "\n".join(lines)
+
+
+def _md_claims(claims: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The claims with their statistics, one Markdown row per comparison."""
+    lines = [
+        _md_row(["claim", "paper", "comparison", "first", "second", "U", "p", "row", "verdict"]),
+        "|" + "---|" * 9,
+    ]
+    for c in claims:
+        rows = c["rows"] or [None]
+        for i, r in enumerate(rows):
+            head = [f"{c['key']} ({c['where']})", c["paper"]] if i == 0 else ["", ""]
+            verdict = c["verdict"] if not c["missing"] else f"not tested: {c['missing']}"
+            if r is None:
+                lines.append(_md_row([*head, "—", "—", "—", "—", "—", "—", verdict]))
+                continue
+            t = r["test"]
+            lines.append(
+                _md_row(
+                    [
+                        *head,
+                        r["label"],
+                        _fmt(r["a"], c["scale"], c["digits"]),
+                        "—" if r["b"] is None else _fmt(r["b"], c["scale"], c["digits"]),
+                        "—" if t is None else f"{t['u']:.1f}",
+                        _p(None if t is None else t["p"]),
+                        r["verdict"],
+                        f"**{verdict}**" if i == 0 else "",
+                    ]
+                )
+            )
+    return lines
 
 
 RULES = (
