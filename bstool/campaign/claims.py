@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -272,14 +272,21 @@ GREATER = "holds when p < 0.05 with the first larger; does not hold when p < 0.0
 SMALLER = "holds when p < 0.05 with the first smaller; does not hold when p < 0.05 the other way"
 
 
-def evaluate(runs: Runs, plan_models: Sequence[str], analyses: set[str]) -> list[Claim]:
-    """Every claim the runs can test, in the paper's order."""
-    have = [m for m in plan_models if runs.get(m)]
-    nn, ca = [m for m in NN if m in have], [m for m in CA if m in have]
-    both = (*nn[:1], *ca[:1]) if nn and ca else (*NN, *CA)  # a model of each group at least
-    out: list[Claim] = []
+class Need(Protocol):
+    def __call__(
+        self, claim: Claim, models: Sequence[str], analysis: str | None = None
+    ) -> bool: ...
+
+
+def _checker(
+    out: list[Claim], have: Sequence[str], analyses: set[str], always: str | None = None
+) -> Need:
+    """``need(claim, models[, analysis])``: appends the claim to ``out``; False (the claim
+    marked not tested, saying why) when a model has no finished run or the plan lacks the
+    analysis (``always``: one every claim needs)."""
 
     def need(claim: Claim, models: Sequence[str], analysis: str | None = None) -> bool:
+        analysis = analysis or always
         lacking = [m for m in models if m not in have]
         if analysis is not None and analysis not in analyses:
             claim.missing = f"the plan has no [analyses] {analysis}"
@@ -290,6 +297,17 @@ def evaluate(runs: Runs, plan_models: Sequence[str], analyses: set[str]) -> list
         out.append(claim)
         return claim.missing is None
 
+    return need
+
+
+def evaluate(runs: Runs, plan_models: Sequence[str], analyses: set[str]) -> list[Claim]:
+    """Every claim the runs can test, in the paper's order."""
+    have = [m for m in plan_models if runs.get(m)]
+    nn, ca = [m for m in NN if m in have], [m for m in CA if m in have]
+    both = (*nn[:1], *ca[:1]) if nn and ca else (*NN, *CA)  # a model of each group at least
+    out: list[Claim] = []
+
+    need = _checker(out, have, analyses)
     c = Claim(
         "fitness-rises",
         "§3.2.4, Figs. 7, 9, 15, 16",
@@ -461,9 +479,6 @@ def evaluate(runs: Runs, plan_models: Sequence[str], analyses: set[str]) -> list
     return out
 
 
-Need = Callable[[Claim, Sequence[str]], bool]
-
-
 def _ranking(runs: Runs, have: Sequence[str], need: Need, walk: Metric, what: str) -> None:
     """The paper's claims on how far the models walk (§3.3, §3.4, §4.3), on ``walk``."""
     c = Claim(
@@ -535,17 +550,7 @@ def evaluate_uncertain(runs: Runs, plan_models: Sequence[str], analyses: set[str
     have = [m for m in plan_models if runs.get(m)]
     out: list[Claim] = []
 
-    def need(claim: Claim, models: Sequence[str]) -> bool:
-        lacking = [m for m in models if m not in have]
-        if "sensitivity" not in analyses:
-            claim.missing = "the plan has no [analyses] sensitivity"
-        elif lacking:
-            claim.missing = f"no finished run of {', '.join(lacking)}"
-        if claim.missing is not None:
-            claim.verdict = NOT_TESTED
-        out.append(claim)
-        return claim.missing is None
-
+    need = _checker(out, have, analyses, "sensitivity")
     _ranking(runs, have, need, box_mean, BOX_WHAT)
     _slowest(runs, have, need, box_mean, BOX_WHAT)
     return out
