@@ -79,6 +79,8 @@ class Transfer:
     sweeps: dict[str, list[tuple[float, float]]]  # parameter -> (value, distance) per point
     joint: list[float]
     extra: dict[str, Any] = field(default_factory=dict)
+    # parameter -> Spearman rho of the joint sample's distances with its values (None: constant)
+    drivers: dict[str, float | None] = field(default_factory=dict)
 
     @property
     def mean(self) -> float:
@@ -122,6 +124,7 @@ class Transfer:
                 for k in self.sweeps
             },
             "joint": list(self.joint),
+            "drivers": dict(self.drivers),
             **self.extra,
         }
 
@@ -137,7 +140,25 @@ def measure(name: str, states: np.ndarray, plan: Design, evaluate: Evaluate) -> 
         for key, points in plan.sweeps.items()
     }
     joint = [float(next(it)) for _ in plan.joint]
-    return Transfer(name, nominal, sweeps, joint)
+    return Transfer(name, nominal, sweeps, joint, drivers=drivers(plan, joint))
+
+
+def drivers(plan: Design, joint: Sequence[float]) -> dict[str, float | None]:
+    """Per uncertain parameter, the Spearman rank correlation of the joint sample's distances
+    with the parameter's values over the same robots: which parameters the losses go with when
+    all vary at once (rho < 0: the larger the value, the shorter the walk). None where either
+    side is constant (fewer than 3 robots, or a gait that never moves)."""
+    from scipy import stats
+
+    out: dict[str, float | None] = {}
+    y = np.asarray(joint, dtype=float)
+    for key in plan.sweeps:
+        x = np.array([float(getattr(r, key)) for r in plan.joint])
+        if len(x) < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
+            out[key] = None
+            continue
+        out[key] = float(stats.spearmanr(x, y).statistic)
+    return out
 
 
 def on_batch(
@@ -202,7 +223,20 @@ def table(results: Sequence[Transfer], plan: Design) -> str:
             value, dist = t.hurts_most(key)
             cells.append(f"{t.name[:14]}: {value:.4g} ({dist * 100:.1f})")
         lines.append(f"  {key} [{lo:.4g}..{hi:.4g}]: " + "; ".join(cells))
+    if len(plan.joint) >= 3:
+        lines.append("")
+        lines.append(
+            "all at once: Spearman rho of the joint sample's distance with each parameter "
+            "(rho < 0: larger values walk less; what to measure first on the real robot)"
+        )
+        for key in plan.sweeps:
+            cells = [f"{t.name[:14]}: {_rho(t.drivers.get(key))}" for t in results]
+            lines.append(f"  {key}: " + "; ".join(cells))
     return "\n".join(lines)
+
+
+def _rho(value: float | None) -> str:
+    return "—" if value is None else f"{value:+.2f}"
 
 
 def plot(results: Sequence[Transfer], plan: Design, path: str) -> None:
