@@ -82,6 +82,25 @@ def _paper_order() -> dict[str, list[cl.RunData]]:
 def test_claims_on_made_up_runs() -> None:
     runs = _paper_order()
     claims = cl.evaluate(runs, list(runs), set())
+    assert [c.key for c in claims] == [
+        "fitness-rises",
+        "ca2dsing-comparable-to-ca1d",
+        "ca2ddiff-best-ca",
+        "nnsin-furthest",
+        "nnsin-above-nnsig",
+        "nn-tolerate-failures",
+        "fig17-counts",
+        "lead-failures-hurt-most",
+        "ca2ddiff-most-resilient",
+        "nnsig-slowest",
+        "nnsig-straightest",
+        "nnsig-smoothest",
+        "ca-stall-beyond-max-trans",
+        "nn-progress-beyond-max-trans",
+        "reinit-remedy",
+        "ca-initial-states",
+        "nnsig-clustering",
+    ]  # fmt: skip (the paper's order)
     assert _claim(claims, "nnsin-furthest").verdict == stats.HOLDS
     assert _claim(claims, "nnsin-above-nnsig").verdict == stats.HOLDS
     assert _claim(claims, "ca2ddiff-best-ca").verdict == stats.HOLDS
@@ -99,19 +118,30 @@ def test_claims_on_made_up_runs() -> None:
     )
 
 
+def _box(runs: dict[str, list[cl.RunData]], means: dict[str, list[float]]) -> None:
+    """Each run's sensitivity analysis: its box mean; its nominal run equal to its fitness."""
+    for model, rs in runs.items():
+        for r, mean in zip(rs, means[model], strict=True):
+            r.results["sensitivity"] = {"mean": mean, "nominal": r.fitness, "kept": 0.5}
+
+
 def test_the_claims_on_the_uncertain_robot_read_the_box_mean() -> None:
     runs = _paper_order()  # on the box below, the order turns around
-    box = {"nnsin": 0.05, "nnsig": 0.02, "ca1d": 0.25, "ca2dsing": 0.2505, "ca2ddiff": 0.10}
-    for model, rs in runs.items():
-        for i, r in enumerate(rs):
-            r.results["sensitivity"] = {"mean": box[model] + 0.001 * i, "kept": 0.5}
-    nominal = cl.evaluate(runs, list(runs), {"sensitivity"})
-    uncertain = cl.evaluate_uncertain(runs, list(runs), {"sensitivity"})
-    assert [c.key for c in uncertain] == [
-        "ca2dsing-comparable-to-ca1d", "ca2ddiff-best-ca", "nnsin-furthest",
-        "nnsin-above-nnsig", "nnsig-slowest",
-    ]  # fmt: skip
-    assert _claim(nominal, "nnsin-furthest").verdict == stats.HOLDS
+    _box(runs, {m: [base + 0.001 * i for i in range(5)] for m, base in
+                {"nnsin": 0.05, "nnsig": 0.02, "ca1d": 0.25, "ca2dsing": 0.2505,
+                 "ca2ddiff": 0.10}.items()})  # fmt: skip
+    every = {"faults", "extrapolate", "initial-states", "sensitivity"}
+    nominal = cl.evaluate(runs, list(runs), every)
+    uncertain = cl.evaluate_uncertain(runs, list(runs), every)
+    baseline = cl.evaluate_uncertain(runs, list(runs), every, nominal=True)
+    keys = ["ca2dsing-comparable-to-ca1d", "ca2ddiff-best-ca", "nnsin-furthest",
+            "nnsin-above-nnsig", "nnsig-slowest"]  # fmt: skip
+    assert [c.key for c in uncertain] == [c.key for c in baseline] == keys
+    assert all(c.metric == cl.BOX_WHAT for c in uncertain)
+    assert all(c.metric == cl.BOX_NOMINAL_WHAT for c in baseline)
+    for key in keys[:4]:  # the baseline is the nominal verdict where fitness is the distance
+        assert _claim(baseline, key).verdict == _claim(nominal, key).verdict
+    assert _claim(baseline, "nnsig-slowest").verdict == stats.UNCLEAR  # as far as ca1d
     assert _claim(uncertain, "nnsin-furthest").verdict == stats.FAILS  # ca1d walks further
     assert _claim(uncertain, "ca2ddiff-best-ca").verdict == stats.FAILS
     assert _claim(uncertain, "nnsin-above-nnsig").verdict == stats.HOLDS
@@ -119,14 +149,27 @@ def test_the_claims_on_the_uncertain_robot_read_the_box_mean() -> None:
     assert _claim(uncertain, "ca2dsing-comparable-to-ca1d").verdict == stats.HOLDS
     row = _claim(uncertain, "nnsin-furthest").rows[0]
     assert row.a.mean == pytest.approx(0.052)  # the box means, not the fitness
-    table = {u["key"]: u for u in campaign_report.survival(nominal, uncertain)}
+    table = {u["key"]: u for u in campaign_report.survival(baseline, uncertain)}
     assert table["nnsin-furthest"] == {
         "key": "nnsin-furthest", "nominal": stats.HOLDS, "uncertain": stats.FAILS,
     }  # fmt: skip
-    assert table["nnsig-slowest"]["nominal"] == stats.UNCLEAR  # no d_30 in these made-up runs
-    lacking = cl.evaluate_uncertain(runs, list(runs), set())
+    lacking = cl.evaluate_uncertain(runs, list(runs), every - {"sensitivity"})
     assert {c.verdict for c in lacking} == {cl.NOT_TESTED}
     assert lacking[0].missing == "the plan has no [analyses] sensitivity"
+
+
+def test_comparable_on_the_box_takes_its_margin_from_the_box_mean() -> None:
+    """CA2dSing against CA1d: the margin is 10 % of CA1d's box mean (0.54 cm here), not of
+    its fitness (3.2 cm), so a 0.3 cm difference of box means is not shown comparable."""
+    runs = _paper_order()
+    means = {m: [0.05] * 5 for m in runs}
+    means["ca1d"] = [0.050, 0.052, 0.054, 0.056, 0.058]
+    means["ca2dsing"] = [0.049, 0.053, 0.057, 0.061, 0.065]  # interleaved: p is large
+    _box(runs, means)
+    claim = _claim(cl.evaluate_uncertain(runs, list(runs), {"sensitivity"}),
+                   "ca2dsing-comparable-to-ca1d")  # fmt: skip
+    assert claim.rows[0].test is not None and claim.rows[0].test.p > 0.05
+    assert claim.verdict == stats.UNCLEAR
 
 
 # -- a small campaign's report -------------------------------------------------------------
@@ -188,6 +231,9 @@ def test_the_report(folder: Path, cli: Any) -> None:
     assert [u["key"] for u in report["survival"]] == [c["key"] for c in report["uncertain_claims"]]
     assert "nnsin-above-nnsig" in {c["key"] for c in report["uncertain_claims"]}
     assert "## The claims on the uncertain robot" in (folder / "report" / "tables.md").read_text()
+    page = (folder / "report" / "index.html").read_text()
+    assert "<h2>The claims on the uncertain robot</h2>" in page
+    assert page.count("<b>nnsin-above-nnsig</b>") == 2  # both claim tables, by the one macro
     figures = {n for n in report["figures"].values() if n}
     assert {"fitness.png", "faults.png", "paths.png", "extrapolation.png", "initial-states.png",
             "gait-nnsig.png", "state-changes.png", "sensitivity.png"} <= figures  # fmt: skip

@@ -27,6 +27,10 @@ def test_drivers_rank_the_parameters_the_distance_goes_with() -> None:
     )
     assert sens.drivers(plan, [0.2] * len(plan.joint)) == dict.fromkeys(plan.sweeps)  # never moves
     assert set(sens.drivers(_plan(2), [0.1, 0.2]).values()) == {None}  # too few robots
+    holed = list(1.0 - friction)
+    holed[3] = float("nan")  # a run that failed: left out, the rest still ranks
+    assert sens.drivers(plan, holed)["friction"] == pytest.approx(-1.0)
+    assert set(sens.drivers(plan, [float("nan")] * len(plan.joint)).values()) == {None}
 
 
 def test_the_table_names_what_to_measure_first() -> None:

@@ -189,9 +189,9 @@ def build(
     by_model = {m: [data[r.name] for r in done if r.spec.model == m] for m in plan.models}
     names = {job.name for r in done for job in an.jobs(plan, data[r.name].transitions)}
     claims = cl.evaluate(by_model, plan.models, names)
-    uncertain = (
-        cl.evaluate_uncertain(by_model, plan.models, names) if plan.analyses.sensitivity else []
-    )
+    box = plan.analyses.sensitivity is not None
+    uncertain = cl.evaluate_uncertain(by_model, plan.models, names) if box else []
+    baseline = cl.evaluate_uncertain(by_model, plan.models, names, nominal=True) if box else []
     record = rec.load(base)
     run_rows = [_run_row(r, data.get(r.name), record) for r in runs]
     model_rows = _model_rows(run_rows, plan.models)
@@ -219,7 +219,8 @@ def build(
             "columns": _columns(model_rows),
             "claims": [c.to_json() for c in claims],
             "uncertain_claims": [c.to_json() for c in uncertain],
-            "survival": survival(claims, uncertain),
+            "survival": survival(baseline, uncertain),
+            "sensitivity": box,
             "figures": shown,
             "sessions": [vars(s) for s in record.sessions],
             "campaign_wall": _hours(record.wall_s),
@@ -238,9 +239,10 @@ def _verdict(c: cl.Claim) -> str:
     return c.verdict if c.missing is None else f"not tested: {c.missing}"
 
 
-def survival(claims: Sequence[cl.Claim], uncertain: Sequence[cl.Claim]) -> list[dict[str, str]]:
-    """Per claim judged on the uncertain robot: its verdict there beside the nominal one."""
-    nominal = {c.key: c for c in claims}
+def survival(baseline: Sequence[cl.Claim], uncertain: Sequence[cl.Claim]) -> list[dict[str, str]]:
+    """Per claim judged on the uncertain robot: its verdict there beside its verdict on the
+    nominal robot measured the same way (``evaluate_uncertain(..., nominal=True)``)."""
+    nominal = {c.key: c for c in baseline}
     return [
         {
             "key": u.key,
@@ -270,13 +272,14 @@ def markdown(context: Mapping[str, Any]) -> str:
         "",
         *_md_claims(context["claims"]),
     ]
-    if context.get("uncertain_claims"):
+    lines += ["", "## The claims on the uncertain robot", ""]
+    if not context.get("sensitivity"):
+        lines.append("Not tested: the plan has no `[analyses] sensitivity`.")
+    else:
         lines += [
-            "",
-            "## The claims on the uncertain robot",
-            "",
             "Each run's mean distance over the random robots of its uncertain box (the plan's "
-            "`[analyses] sensitivity`) instead of its distance on the nominal robot.",
+            "`[analyses] sensitivity`), beside the verdict on the same analysis's run on the "
+            "nominal robot. All the other claims are judged on the nominal robot only.",
             "",
             _md_row(["claim", "nominal robot", "uncertain robot"]),
             "|---|---|---|",

@@ -83,8 +83,9 @@ def command(
     [uncertain] table, else the default box of docs/robot.md): every parameter alone over its
     range (--points values), and --samples robots drawn from all ranges at once (seeded: the
     same robots for every controller). Prints the nominal distance, the joint sample's mean,
-    10th percentile, worst and worst-10 % mean, the fraction of the nominal distance kept, and
-    per parameter the value that hurts most."""
+    10th percentile, worst and worst-10 % mean, the fraction of the nominal distance kept, per
+    parameter the value that hurts most, and the Spearman correlation of the joint sample's
+    distances with each parameter (which ones the losses go with: measure those first)."""
     from tqdm import tqdm
 
     from bstool import outputs

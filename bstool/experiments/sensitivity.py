@@ -147,17 +147,20 @@ def drivers(plan: Design, joint: Sequence[float]) -> dict[str, float | None]:
     """Per uncertain parameter, the Spearman rank correlation of the joint sample's distances
     with the parameter's values over the same robots: which parameters the losses go with when
     all vary at once (rho < 0: the larger the value, the shorter the walk). None where either
-    side is constant (fewer than 3 robots, or a gait that never moves)."""
+    side is constant (fewer than 3 robots with a finite distance, or a gait that never moves)."""
     from scipy import stats
 
     out: dict[str, float | None] = {}
     y = np.asarray(joint, dtype=float)
+    finite = np.isfinite(y)
+    y = y[finite]
     for key in plan.sweeps:
-        x = np.array([float(getattr(r, key)) for r in plan.joint])
+        x = np.array([float(getattr(r, key)) for r in plan.joint])[finite]
         if len(x) < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
             out[key] = None
             continue
-        out[key] = float(stats.spearmanr(x, y).statistic)
+        rho = float(stats.spearmanr(x, y).statistic)
+        out[key] = rho if math.isfinite(rho) else None
     return out
 
 
