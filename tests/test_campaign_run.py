@@ -228,3 +228,37 @@ def test_the_paper_plan_adopts_the_interim_loops_runs(tmp_path: Path) -> None:
     save_outputs(p.state, tmp_path / "runs" / "nnsin-s2", p.extra)
     with pytest.raises(InputError, match=r"run nnsin-s2 .* --pop 40, but the plan says 50"):
         check_runs(tmp_path, plan, settings)
+
+
+def test_time_left_goes_by_each_models_pace() -> None:
+    from bstool.campaign import pace
+
+    record = rec.Record()
+    record.run("ca1d-s1").wall_s, record.run("ca1d-s1").steps = 600.0, 100  # 6 s a generation
+    record.run("ca2ddiff-s1").wall_s, record.run("ca2ddiff-s1").steps = 120.0, 120  # 1 s
+    models = {"ca1d-s1": "ca1d", "ca2ddiff-s1": "ca2ddiff", "ca1d-s2": "ca1d",
+              "ca2ddiff-s2": "ca2ddiff", "nnsin-s2": "nnsin"}  # fmt: skip
+    rates = pace.per_model(models, record)
+    assert rates == {"ca1d": 6.0, "ca2ddiff": 1.0}
+    left = {"ca1d-s1": 0, "ca2ddiff-s1": 0, "ca1d-s2": 50, "ca2ddiff-s2": 120, "nnsin-s2": 10}
+    # nnsin not timed yet: the mean of the models that are (3.5 s a generation)
+    assert pace.seconds_left(left, models, rates) == 50 * 6 + 120 * 1 + 10 * 3.5
+    assert pace.seconds_left({"nnsin-s2": 10}, models, {}, fallback=2.0) == 20.0
+    assert pace.seconds_left({"nnsin-s2": 10}, models, {}) is None
+    assert [pace.text(s) for s in (None, 25 * 60, 3 * 3600)] == ["?", "25 min", "3.0 h"]
+
+
+def test_a_log_gets_the_time_left(
+    tmp_path: Path, cli: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without a progress bar (stderr is not a terminal here), a line every few generations."""
+    from bstool.commands import campaign as command
+
+    monkeypatch.setattr(command, "PROGRESS_EVERY", 2)
+    (tmp_path / "plan.toml").write_text(PLAN)
+    run = cli("campaign", str(tmp_path / "plan.toml"), "-o", str(tmp_path / "C"))
+    assert run.code == 0, run.err
+    lines = [x for x in run.err.splitlines() if " left (" in x]
+    assert lines[0].startswith("campaign: nnsig-s1 generation 2 of 4, best ")
+    assert not [x for x in lines if "about ? left" in x]
+    assert len(lines) == 4  # generation 2 of each run (its last one is the "finished" line)

@@ -183,7 +183,7 @@ def _evolve(
 ) -> None:
     from tqdm import tqdm
 
-    from bstool.campaign import runner
+    from bstool.campaign import pace, runner
     from bstool.commands.evolve import fit_schedule
     from bstool.evolve.driver import EvolveResult, Generation, fitness_text
     from bstool.experiments import progress
@@ -207,6 +207,17 @@ def _evolve(
         dynamic_ncols=True,
     )
     count = {"done": finished}
+    models = {r.name: r.spec.model for r in runs}
+    clock = {"start": time.monotonic(), "made": 0}
+
+    def left(current: runner.Run, step: int) -> str:
+        """Time left at each model's pace so far (this session's mean pace before any)."""
+        remaining = {r.name: r.total_steps - min(r.steps_done, r.total_steps) for r in runs}
+        remaining[current.name] = current.total_steps - step
+        made = clock["made"]
+        fallback = (time.monotonic() - clock["start"]) / made if made else None
+        return pace.text(pace.seconds_left(remaining, models, pace.per_model(models, record),
+                                           fallback))  # fmt: skip
 
     def started(run: runner.Run, index: int) -> None:
         bar.set_description(f"campaign {count['done']}/{len(runs)} runs, {run.name}")
@@ -217,11 +228,18 @@ def _evolve(
             )
 
     def generation(run: runner.Run, g: Generation) -> None:
+        clock["made"] += 1
+        best = fitness_text(g.best_so_far, g.fitness)
+        remaining = left(run, g.step)
         bar.set_postfix(
-            {"gen": f"{g.step}/{g.total_steps}", "best": fitness_text(g.best_so_far, g.fitness)},
-            refresh=False,
+            {"gen": f"{g.step}/{g.total_steps}", "best": best, "left": remaining}, refresh=False
         )
         bar.update(1)
+        if bar.disable and g.step % PROGRESS_EVERY == 0 and g.step < g.total_steps:
+            say(
+                f"campaign: {run.name} generation {g.step} of {g.total_steps}, best {best}; "
+                f"about {remaining} left ({count['done']} of {len(runs)} runs finished)"
+            )
 
     def ended(run: runner.Run, result: EvolveResult, seconds: float) -> None:
         checkpoint()
@@ -249,6 +267,10 @@ def _evolve(
         )
     finally:
         bar.close()
+
+
+#: without a progress bar (a log file), a line every this many generations of a run
+PROGRESS_EVERY = 10
 
 
 def _report(
