@@ -1,7 +1,8 @@
 """How long a campaign has left: each unfinished run's remaining generations at its model's
 pace, measured by the campaign itself (DIR/campaign.json: the seconds and generations it spent
-on each run). Models differ several-fold (a ca2ddiff step costs about a fifth of a ca1d generation),
-so a single generations-per-second rate, as a progress bar would use, is far off."""
+on each run). Models differ several-fold (a ca2ddiff step costs about a fifth of a ca1d
+generation), so a single generations-per-second rate, as a progress bar would use, is far
+off."""
 
 from __future__ import annotations
 
