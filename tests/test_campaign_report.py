@@ -125,6 +125,15 @@ def _box(runs: dict[str, list[cl.RunData]], means: dict[str, list[float]]) -> No
             r.results["sensitivity"] = {"mean": mean, "nominal": r.fitness, "kept": 0.5}
 
 
+def test_a_claim_not_tested_shows_why_in_every_table() -> None:
+    claim = cl.Claim("nn_vs_ca", "§3", "NN tolerate failures", "cm")
+    assert claim.shown == stats.UNCLEAR == cl.shown_verdict(claim.to_json())
+    claim.missing, claim.verdict = "no finished nnsig run", cl.NOT_TESTED
+    assert claim.shown == "not tested: no finished nnsig run" == cl.shown_verdict(claim.to_json())
+    row = campaign_report.survival([claim], [claim])[0]
+    assert row["nominal"] == row["uncertain"] == claim.shown
+
+
 def test_the_claims_on_the_uncertain_robot_read_the_box_mean() -> None:
     runs = _paper_order()  # on the box below, the order turns around
     _box(runs, {m: [base + 0.001 * i for i in range(5)] for m, base in

@@ -65,6 +65,11 @@ class Row:
         }
 
 
+def shown_verdict(claim: Mapping[str, Any]) -> str:
+    """A claim's verdict (its JSON) as a table shows it: "not tested: why" when it was not."""
+    return f"{NOT_TESTED}: {claim['missing']}" if claim.get("missing") else str(claim["verdict"])
+
+
 @dataclass
 class Claim:
     key: str
@@ -77,6 +82,11 @@ class Claim:
     rule: str = ""
     verdict: str = stats.UNCLEAR
     missing: str | None = None  # why the claim could not be tested
+
+    @property
+    def shown(self) -> str:
+        """The verdict as a table shows it."""
+        return shown_verdict(self.to_json())
 
     def to_json(self) -> dict[str, Any]:
         return {

@@ -18,7 +18,7 @@ from typing import Any
 from bstool import fileio, outputs
 from bstool.campaign import analyses as an
 from bstool.campaign import claims as cl
-from bstool.campaign import figures, runner, stats
+from bstool.campaign import figures, pace, runner, stats
 from bstool.campaign import plan as cp
 from bstool.campaign import record as rec
 from bstool.controllers import load_controller
@@ -45,21 +45,16 @@ def _run_data(run: runner.Run, results: dict[str, dict[str, Any]]) -> cl.RunData
     )
 
 
-def _hours(seconds: float) -> str:
-    minutes = seconds / 60
-    return f"{minutes:.1f} min" if minutes < 90 else f"{minutes / 60:.2f} h"
-
-
 def _run_row(run: runner.Run, data: cl.RunData | None, record: rec.Record) -> dict[str, Any]:
     r = record.runs.get(run.name)
     if r is None:  # never seen by bstool campaign (bstool report on a folder it adopts later)
         r = rec.RunRecord(adopted_steps=run.steps_done)
     if r.adopted_steps and r.steps:
-        wall = f"{_hours(r.wall_s)} for {r.steps} generations; {r.adopted_steps} made before"
+        wall = f"{pace.text(r.wall_s)} for {r.steps} generations; {r.adopted_steps} made before"
     elif r.adopted_steps:
         wall = f"not timed: its {r.adopted_steps} generations were made before the campaign"
     else:
-        wall = _hours(r.wall_s) if r.steps else "—"
+        wall = pace.text(r.wall_s) if r.steps else "—"
     row: dict[str, Any] = {
         "name": run.name,
         "model": run.spec.model,
@@ -223,7 +218,7 @@ def build(
             "sensitivity": box,
             "figures": shown,
             "sessions": [vars(s) for s in record.sessions],
-            "campaign_wall": _hours(record.wall_s),
+            "campaign_wall": pace.text(record.wall_s),
             "campaign_wall_s": record.wall_s,
             "rules": RULES,
             "confidence": stats.CONFIDENCE,
@@ -235,10 +230,6 @@ def build(
     return target / "index.html"
 
 
-def _verdict(c: cl.Claim) -> str:
-    return c.verdict if c.missing is None else f"not tested: {c.missing}"
-
-
 def survival(baseline: Sequence[cl.Claim], uncertain: Sequence[cl.Claim]) -> list[dict[str, str]]:
     """Per claim judged on the uncertain robot: its verdict there beside its verdict on the
     nominal robot measured the same way (``evaluate_uncertain(..., nominal=True)``)."""
@@ -246,8 +237,8 @@ def survival(baseline: Sequence[cl.Claim], uncertain: Sequence[cl.Claim]) -> lis
     return [
         {
             "key": u.key,
-            "nominal": _verdict(nominal[u.key]) if u.key in nominal else "—",
-            "uncertain": _verdict(u),
+            "nominal": nominal[u.key].shown if u.key in nominal else "—",
+            "uncertain": u.shown,
         }
         for u in uncertain
     ]
@@ -334,7 +325,7 @@ def _md_claims(claims: Sequence[Mapping[str, Any]]) -> list[str]:
         rows = c["rows"] or [None]
         for i, r in enumerate(rows):
             head = [f"{c['key']} ({c['where']})", c["paper"]] if i == 0 else ["", ""]
-            verdict = c["verdict"] if not c["missing"] else f"not tested: {c['missing']}"
+            verdict = cl.shown_verdict(c)
             if r is None:
                 lines.append(_md_row([*head, "—", "—", "—", "—", "—", "—", verdict]))
                 continue
