@@ -19,7 +19,9 @@ own nominal distance, nominal >= 85 % of the shipped gait's. OUT/summary.json ho
 Usage: python bench/reship_randomized.py OUT [--models nnsin,...] [--seeds 1,2,3]
        [--samples 4] [--score mean|worst-quarter] [--robots 64] [--workers 2] [--no-nominal]
        [--measure-only] [--plain] [--pop P] [--gens G] [--ca2ddiff-gens L] [--coevol-gens C]
-       [--no-shipped] [--baseline DIR]
+       [--no-shipped] [--baseline DIR] [--also NAME=C.json ...]
+``--also`` measures other controllers of a model beside them (e.g. a gait evolved on a box of
+the user's own robot file, docs/results.md "evolved for the grippy corner").
 With --plain and a budget it is the evolution comparison of docs/results.md ("Randomized
 against nominal evolution"): every figure there is plain physics.
 """
@@ -156,6 +158,14 @@ def measure(paths: dict[str, Path], model: str, args: argparse.Namespace) -> dic
     return out
 
 
+def _also(text: str) -> tuple[str, Path, str]:
+    """NAME=C.json of --also: the name, the file and its controller's model."""
+    name, sep, path = text.partition("=")
+    if not sep or not name or not path:
+        raise SystemExit(f"--also {text!r}: expected NAME=C.json")
+    return name, Path(path), load_controller(Path(path)).model
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("out", type=Path)
@@ -186,7 +196,15 @@ def main() -> None:
         default=None,
         help="folder of <model>.json to compare with and start from (default: the shipped)",
     )
+    ap.add_argument(
+        "--also",
+        action="append",
+        default=[],
+        metavar="NAME=C.json",
+        help="also measure this controller (its model's rows); repeatable",
+    )
     args = ap.parse_args()
+    also = [_also(text) for text in args.also]
     args.out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in args.seeds.split(",")]
     kinds = ["rand"] if args.no_nominal else ["rand", "nominal"]
@@ -201,6 +219,7 @@ def main() -> None:
                     evolve_one(args.out, model, seed, kind, args)
                 if (folder / "best.json").exists():
                     paths[f"{kind}-s{seed}"] = folder / "best.json"
+        paths.update({name: path for name, path, m in also if m == model})
         figures = measure(paths, model, args)
         rand = {k: v for k, v in figures.items() if k.startswith("rand")}
         pick = max(rand, key=lambda k: rand[k]["validation"] or 0.0) if rand else None
