@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import json
+from collections.abc import Callable
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from bstool.experiments import sensitivity as sens
 from bstool.robot import RobotSpec
 from bstool.robot.robotfile import Robot
+from tests.conftest import CliRun
 
 
 def _plan(samples: int) -> sens.Design:
@@ -42,3 +47,41 @@ def test_the_table_names_what_to_measure_first() -> None:
     assert "all at once: Spearman rho" in text
     assert "  friction: gait: -1.00" in text
     assert t.to_json()["drivers"]["friction"] == pytest.approx(-1.0)
+
+
+def test_a_build_plays_its_own_programs_timing_on_every_robot(
+    traced_build: Callable[..., Path], cli: Callable[..., CliRun], tmp_path: Path
+) -> None:
+    """`bstool sensitivity BUILD`: the nominal robot walks what `simulate --build` walks (the
+    build's own schedule, not the schedule model), and the sample's robots differ from it."""
+    build = traced_build("nnsin")
+    sim = cli("simulate", "--build", str(build), "-T", "3", "--json")
+    assert sim.code == 0, sim.err
+    run = cli(
+        "sensitivity", str(build), "-T", "3", "--points", "2", "--samples", "2", "--json", "-q"
+    )
+    assert run.code == 0, run.err
+    out = json.loads(run.out)
+    (result,) = out["controllers"]
+    assert result["nominal"] == pytest.approx(json.loads(sim.out)["distance"], abs=1e-12)
+    assert "build's own programs" in out["timing"]["build"]
+    assert len(result["joint"]) == 2 and result["joint"] != [result["nominal"]] * 2
+    model = cli(
+        "sensitivity", str(build / "controller.json"), "-T", "3", "--points", "2",
+        "--samples", "2", "--stamp-timed", "--json", "-q",
+    )  # fmt: skip
+    assert "schedule model" in json.loads(model.out)["timing"]["controller"]
+    bad = cli("sensitivity", str(tmp_path), "-T", "3")
+    assert bad.code == 2 and "not a build (no manifest.json)" in bad.err
+
+
+def test_a_build_schedule_plays_only_its_own_states() -> None:
+    from bstool.errors import InputError
+    from bstool.sim.timed import BuildSchedule, StampSchedule, schedules_of
+
+    schedule = StampSchedule.from_events([(0.1, 0, 0.0)], samples=[0.0, 0.5], actuator_count=1)
+    states = np.zeros((2, 1, 1), dtype=np.int64)
+    source = BuildSchedule(schedule, states)
+    assert schedules_of(source, states) == [schedule]
+    with pytest.raises(InputError, match="only the states it was compiled from"):
+        schedules_of(source, states + 1)

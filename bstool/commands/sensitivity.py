@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 import click
@@ -13,7 +14,7 @@ from bstool.experiments.sensitivity import DEFAULT_POINTS, DEFAULT_SAMPLES
 
 
 @click.command("sensitivity")
-@click.argument("controllers", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("controllers", nargs=-1, required=True, type=click.Path(exists=True))
 @click.option(
     "--points",
     type=click.IntRange(min=2),
@@ -85,7 +86,11 @@ def command(
     same robots for every controller). Prints the nominal distance, the joint sample's mean,
     10th percentile, worst and worst-10 % mean, the fraction of the nominal distance kept, per
     parameter the value that hurts most, and the Spearman correlation of the joint sample's
-    distances with each parameter (which ones the losses go with: measure those first)."""
+    distances with each parameter (which ones the losses go with: measure those first).
+
+    A CONTROLLER may be a build folder (a `bstool compile` output): its controller, each servo
+    moving when the build's own programs do on the twin (as `simulate --build`), not when the
+    schedule model predicts: what the stamps you flash would walk on each robot."""
     from tqdm import tqdm
 
     from bstool import outputs
@@ -97,7 +102,11 @@ def command(
 
     if plot:
         outputs.check_file(plot, "plot")  # before any simulation
-    loaded = [common.load(path, robot) for path in controllers]
+    builds = {path: _build(path) for path in controllers if Path(path).is_dir()}
+    loaded = [
+        common.load(str(builds[path].controller_file) if path in builds else path, robot)
+        for path in controllers
+    ]
     first = loaded[0]
     chosen = first.robot or resolve(robot, None)[0]
     say_note(first.note, as_json)
@@ -120,10 +129,14 @@ def command(
         file=sys.stderr,
         disable=quiet or as_json or None,
     ) as bar:
-        for label, item in zip(labels, loaded, strict=True):
+        for label, item, path in zip(labels, loaded, controllers, strict=True):
             if item.controller.legs != chosen.spec.legs:  # pragma: no cover - sizes are fixed
                 raise InputError(f"{item.path} is for another robot size")
-            evaluate = _evaluator(item.controller, chosen.spec, stamp_timed, threads, cluster)
+            build = builds.get(path)
+            source = None if build is None else _build_schedule(build, item.controller, T)
+            evaluate = _evaluator(
+                item.controller, chosen.spec, stamp_timed, threads, cluster, source
+            )
             try:
                 run = sens.chunked(evaluate, max(1, 2 * threads), bar.update)
                 results.append(sens.measure(label, item.controller.states(T), plan, run))
@@ -137,6 +150,10 @@ def command(
         out: dict[str, Any] = {
             "transitions": T,
             "stamp_timed": stamp_timed,
+            "timing": {
+                label: _timing(path, builds, stamp_timed)
+                for label, path in zip(labels, controllers, strict=True)
+            },
             "robot": chosen.to_json(),
             "box": chosen.box.to_toml_table(),
             "points": points,
@@ -148,7 +165,13 @@ def command(
         click.echo(json.dumps(out))
         return
     click.echo(f"robot: {chosen.source}; uncertain: {chosen.box.describe()}")
-    click.echo(f"{T} transitions, {'stamp-timed' if stamp_timed else 'plain'} physics")
+    how = {_timing(path, builds, stamp_timed) for path in controllers}
+    if len(how) == 1:
+        click.echo(f"{T} transitions, {how.pop()}")
+    else:
+        click.echo(f"{T} transitions; timing:")
+        for label, path in zip(labels, controllers, strict=True):
+            click.echo(f"  {label}: {_timing(path, builds, stamp_timed)}")
     click.echo(sens.table(results, plan))
     if plot:
         click.echo(f"plot: {plot}")
@@ -169,13 +192,53 @@ class _Evaluate:
             close()
 
 
+def _timing(path: str, builds: dict[str, Any], stamp_timed: bool) -> str:
+    if path in builds:
+        return f"stamp-timed physics on the build's own programs ({path})"
+    return "stamp-timed physics (schedule model)" if stamp_timed else "plain physics"
+
+
+def _build(path: str) -> Any:
+    """The build of a CONTROLLER argument that is a folder (it must hold its controller)."""
+    from bstool.commands.simulate_build import load_matching
+    from bstool.errors import InputError
+
+    if not (Path(path) / "manifest.json").is_file():
+        raise InputError(
+            f"{path}: a folder, but not a build (no manifest.json)",
+            hint="give a controller file (C.json, RUN/best.json) or a `bstool compile` output",
+        )
+    return load_matching(path, None)[0]
+
+
+def _build_schedule(build: Any, ctrl: Any, transitions: int) -> Any:
+    """The build's own schedule of ``transitions`` transitions (the twin without physics)."""
+    from bstool.errors import InputError
+    from bstool.sim.timed import BuildSchedule
+    from hil_mock.schedule_extract import extract_schedule
+
+    if (build.legs, build.modules) != (ctrl.legs, ctrl.modules):  # pragma: no cover - fixed
+        raise InputError(f"{build.root}: the build is for another robot size")
+    schedule, _ = extract_schedule(build, transitions)
+    return BuildSchedule(schedule, ctrl.states(transitions))
+
+
 def _evaluator(
-    ctrl: Any, spec: Any, stamp_timed: bool, workers: int, cluster: str | None
+    ctrl: Any,
+    spec: Any,
+    stamp_timed: bool,
+    workers: int,
+    cluster: str | None,
+    source: Any = None,
 ) -> _Evaluate:
+    """``source``: a build's own schedule (BuildSchedule), else the schedule model when
+    ``stamp_timed``, else plain physics."""
     from bstool.evolve.fitness import PhysicsFitness, StampTimedFitness
 
     factory: Any
-    if stamp_timed:
+    if source is not None:
+        factory = StampTimedFitness(source, ctrl.legs, ctrl.modules, workers, spec)
+    elif stamp_timed:
         from bstool.commands.simulate_model import evolved_builds, evolved_period
         from hil_mock.schedule_model import schedule_model
 

@@ -404,8 +404,26 @@ class ScheduleEnsemble:
                          for i, v in enumerate(items)))  # fmt: skip
 
 
-ScheduleSource = ScheduleModel | ScheduleEnsemble
-"""What evolution plays a candidate's state sequence on."""
+@dataclass(frozen=True, eq=False)
+class BuildSchedule:
+    """One build's own schedule (its programs' timing on the twin, no model), for the states
+    the build was compiled from: ``bstool sensitivity BUILD`` plays the build a user flashes
+    on other robots. It plays only those states (a guard: another sequence is an error)."""
+
+    schedule: StampSchedule
+    states: np.ndarray
+
+    def __call__(self, states: np.ndarray) -> StampSchedule:
+        if not np.array_equal(np.asarray(states), self.states):
+            raise InputError(
+                "a build's schedule plays only the states it was compiled from",
+                hint="give the build's own controller, or its transitions (-T)",
+            )
+        return self.schedule
+
+
+ScheduleSource = ScheduleModel | ScheduleEnsemble | BuildSchedule
+"""What evolution (or a sensitivity run) plays a candidate's state sequence on."""
 
 
 def mean_distance(distances: Sequence[float]) -> float:
@@ -418,4 +436,6 @@ def schedules_of(source: ScheduleSource, states: np.ndarray) -> list[StampSchedu
     ensemble (its fitness is the mean distance over them)."""
     if isinstance(source, ScheduleEnsemble):
         return source.schedules(states)
+    if isinstance(source, BuildSchedule):
+        return [source(states)]
     return [source.schedule(states)]
