@@ -19,7 +19,9 @@ own nominal distance, nominal >= 85 % of the shipped gait's. OUT/summary.json ho
 Usage: python bench/reship_randomized.py OUT [--models nnsin,...] [--seeds 1,2,3]
        [--samples 4] [--score mean|worst-quarter] [--robots 64] [--workers 2] [--no-nominal]
        [--measure-only] [--plain] [--pop P] [--gens G] [--ca2ddiff-gens L] [--coevol-gens C]
-       [--no-shipped] [--baseline DIR] [--also NAME=C.json ...]
+       [--no-shipped] [--baseline DIR] [--also NAME=C.json ...] [--builds]
+``--builds`` plays each controller on its own build's timing (compiled into OUT/builds/), as
+``bstool sensitivity BUILD`` does, instead of the schedule model evolution scored with.
 ``--also`` measures other controllers of a model beside them (e.g. a gait evolved on a box of
 the user's own robot file, docs/results.md "evolved for the grippy corner").
 With --plain and a budget it is the evolution comparison of docs/results.md ("Randomized
@@ -42,6 +44,8 @@ from bstool.evolve import driver
 from bstool.evolve.checkpoint import is_run
 from bstool.experiments import sensitivity as sens
 from bstool.robot.robotfile import Robot
+from bstool.sim.timed import BuildSchedule
+from hil_mock.schedule_extract import extract_schedule
 from hil_mock.schedule_model import schedule_model
 
 MODELS = ("nnsin", "nnsig", "ca1d", "ca2dsing", "ca2ddiff")
@@ -130,18 +134,24 @@ def measure(paths: dict[str, Path], model: str, args: argparse.Namespace) -> dic
     plan = sens.Design(
         Robot(), {}, Robot().box.samples(Robot().spec, args.robots, seed=[FRESH_SEED]), FRESH_SEED
     )
-    factory: Any = (
-        PhysicsFitness(workers=args.workers)
-        if args.plain
-        else StampTimedFitness(_schedule(model, 0), workers=args.workers)
-    )
-    ev = factory.build()
+    ev: Any = None
+    if args.plain:
+        ev = PhysicsFitness(workers=args.workers).build()
+    elif not args.builds:
+        ev = StampTimedFitness(_schedule(model, 0), workers=args.workers).build()
     out = {}
     try:
         for name, path in paths.items():
             ctrl = load_controller(path)
+            if args.builds:  # the controller's own build, not the schedule model
+                if ev is not None:
+                    ev.close()
+                source = BuildSchedule(
+                    extract_schedule(_compiled(path, model, name, args), 30)[0], ctrl.states(30)
+                )
+                ev = StampTimedFitness(source, workers=args.workers).build()
 
-            def run(seqs: list[Any], robots: list[Any]) -> list[float]:
+            def run(seqs: list[Any], robots: list[Any], ev: Any = ev) -> list[float]:
                 return [float(d) for d in ev(seqs, robot=robots)]
 
             t = sens.measure(name, ctrl.states(30), plan, run)
@@ -154,7 +164,8 @@ def measure(paths: dict[str, Path], model: str, args: argparse.Namespace) -> dic
                 "path": str(path),
             }
     finally:
-        ev.close()
+        if ev is not None:
+            ev.close()
     return out
 
 
@@ -164,6 +175,18 @@ def _also(text: str) -> tuple[str, Path, str]:
     if not sep or not name or not path:
         raise SystemExit(f"--also {text!r}: expected NAME=C.json")
     return name, Path(path), load_controller(Path(path)).model
+
+
+def _compiled(path: Path, model: str, name: str, args: argparse.Namespace) -> Any:
+    """``bstool compile`` of ``path`` in OUT/builds/MODEL-NAME (kept: compiled once)."""
+    from bstool import buildfile
+    from bstool.cli import main as cli
+
+    folder = args.out / "builds" / f"{model}-{name}"
+    made = (folder / "manifest.json").is_file()
+    if not made and cli(["compile", str(path), "-o", str(folder), "-q", "--force"]) != 0:
+        raise SystemExit(f"could not compile {path}")
+    return buildfile.load(str(folder))
 
 
 def main() -> None:
@@ -197,6 +220,12 @@ def main() -> None:
         help="folder of <model>.json to compare with and start from (default: the shipped)",
     )
     ap.add_argument(
+        "--builds",
+        action="store_true",
+        help="measure each controller on its own build's timing (bstool sensitivity BUILD), "
+        "not the schedule model",
+    )
+    ap.add_argument(
         "--also",
         action="append",
         default=[],
@@ -204,11 +233,14 @@ def main() -> None:
         help="also measure this controller (its model's rows); repeatable",
     )
     args = ap.parse_args()
+    if args.builds and args.plain:
+        ap.error("--builds plays stamp-timed physics; drop --plain")
     also = [_also(text) for text in args.also]
     args.out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in args.seeds.split(",")]
     kinds = ["rand"] if args.no_nominal else ["rand", "nominal"]
-    old = args.out / "summary.json"
+    summary_file = args.out / ("summary-builds.json" if args.builds else "summary.json")
+    old = summary_file
     summary: dict[str, Any] = fileio.read_json(old) if old.exists() else {}  # other models kept
     for model in args.models.split(","):
         paths: dict[str, Path] = {} if args.no_shipped else {"shipped": baseline(model, args)}
@@ -239,8 +271,9 @@ def main() -> None:
                 and verdict["nominal_ratio"] >= 0.85
             )
         summary[model] = {"runs": figures, "verdict": verdict}
-        fileio.write_json(args.out / "summary.json", summary)
+        fileio.write_json(summary_file, summary)
         how = "plain" if args.plain else "stamp-timed"
+        how += ", each on its own build" if args.builds else ""
         print(f"\n{model}: {how}, {args.robots} fresh robots of the default box (cm)")
         print(f"  {'run':<14}{'nominal':>9}{'mean':>8}{'p10':>8}{'worst':>8}{'validation':>12}")
         for name, f in figures.items():
