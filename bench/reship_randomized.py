@@ -44,8 +44,7 @@ from bstool.evolve import driver
 from bstool.evolve.checkpoint import is_run
 from bstool.experiments import sensitivity as sens
 from bstool.robot.robotfile import Robot
-from bstool.sim.timed import BuildSchedule
-from hil_mock.schedule_extract import extract_schedule
+from hil_mock.schedule_extract import build_schedule
 from hil_mock.schedule_model import schedule_model
 
 MODELS = ("nnsin", "nnsig", "ca1d", "ca2dsing", "ca2ddiff")
@@ -146,9 +145,7 @@ def measure(paths: dict[str, Path], model: str, args: argparse.Namespace) -> dic
             if args.builds:  # the controller's own build, not the schedule model
                 if ev is not None:
                     ev.close()
-                source = BuildSchedule(
-                    extract_schedule(_compiled(path, model, name, args), 30)[0], ctrl.states(30)
-                )
+                source = build_schedule(_compiled(path, model, name, args), ctrl.states(30))
                 ev = StampTimedFitness(source, workers=args.workers).build()
 
             def run(seqs: list[Any], robots: list[Any], ev: Any = ev) -> list[float]:

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from bstool.buildfile import Build
 from bstool.errors import InputError
 from bstool.moduleid import ModuleId
-from bstool.sim.timed import StampSchedule
+from bstool.sim.timed import BuildSchedule, StampSchedule
 from bstool.timingfile import TimingModel
 from hil_mock.body import ServoTrack, robot_spec
 from hil_mock.perturb import Perturbation
@@ -110,6 +110,13 @@ def extract_schedule(
     result = twin.run(transitions + 1, timeout_s=timeout_s)
     schedule = twin.schedule(transitions)
     return schedule, result
+
+
+def build_schedule(build: Build, states: Any) -> BuildSchedule:
+    """``build``'s own schedule for ``states`` (its controller's, ``len(states) - 1``
+    transitions), as a schedule source: what ``bstool sensitivity BUILD`` plays on each robot."""
+    schedule, _ = extract_schedule(build, len(states) - 1)
+    return BuildSchedule(schedule, states)
 
 
 def stamp_timed_simulator(build: Build) -> Simulator:

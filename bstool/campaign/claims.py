@@ -86,7 +86,7 @@ class Claim:
     @property
     def shown(self) -> str:
         """The verdict as a table shows it."""
-        return shown_verdict(self.to_json())
+        return shown_verdict({"verdict": self.verdict, "missing": self.missing})
 
     def to_json(self) -> dict[str, Any]:
         return {

@@ -214,13 +214,11 @@ def _build(path: str) -> Any:
 def _build_schedule(build: Any, ctrl: Any, transitions: int) -> Any:
     """The build's own schedule of ``transitions`` transitions (the twin without physics)."""
     from bstool.errors import InputError
-    from bstool.sim.timed import BuildSchedule
-    from hil_mock.schedule_extract import extract_schedule
+    from hil_mock.schedule_extract import build_schedule
 
     if (build.legs, build.modules) != (ctrl.legs, ctrl.modules):  # pragma: no cover - fixed
         raise InputError(f"{build.root}: the build is for another robot size")
-    schedule, _ = extract_schedule(build, transitions)
-    return BuildSchedule(schedule, ctrl.states(transitions))
+    return build_schedule(build, ctrl.states(transitions))
 
 
 def _evaluator(

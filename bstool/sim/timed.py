@@ -410,16 +410,16 @@ class BuildSchedule:
     the build was compiled from: ``bstool sensitivity BUILD`` plays the build a user flashes
     on other robots. It plays only those states (a guard: another sequence is an error)."""
 
-    schedule: StampSchedule
+    fixed: StampSchedule
     states: np.ndarray
 
-    def __call__(self, states: np.ndarray) -> StampSchedule:
+    def schedule(self, states: np.ndarray) -> StampSchedule:
         if not np.array_equal(np.asarray(states), self.states):
             raise InputError(
                 "a build's schedule plays only the states it was compiled from",
                 hint="give the build's own controller, or its transitions (-T)",
             )
-        return self.schedule
+        return self.fixed
 
 
 ScheduleSource = ScheduleModel | ScheduleEnsemble | BuildSchedule
@@ -436,6 +436,4 @@ def schedules_of(source: ScheduleSource, states: np.ndarray) -> list[StampSchedu
     ensemble (its fitness is the mean distance over them)."""
     if isinstance(source, ScheduleEnsemble):
         return source.schedules(states)
-    if isinstance(source, BuildSchedule):
-        return [source(states)]
     return [source.schedule(states)]
