@@ -49,6 +49,28 @@ def test_the_table_names_what_to_measure_first() -> None:
     assert t.to_json()["drivers"]["friction"] == pytest.approx(-1.0)
 
 
+def test_the_mean_and_10th_percentile_come_with_how_sure_they_are() -> None:
+    plan = _plan(40)
+    distances = [0.1 + 0.005 * i for i in range(40)]  # 10 to 29.5 cm, evenly
+    t = sens.Transfer("gait", 0.25, {k: [(0.0, 0.2)] for k in plan.sweeps}, distances)
+    iv = t.intervals()
+    assert iv is not None
+    for key, value in (("mean", t.mean), ("p10", t.p10)):
+        low, high = iv[key]
+        assert low < value < high  # a real spread, around the figure itself
+    assert iv["p10"][0] >= min(distances) and iv["p10"][1] <= np.percentile(distances, 40)
+    assert iv == t.intervals()  # seeded: the same table every time
+    text = sens.table([t], plan)
+    low, high = iv["p10"]
+    assert f"p10 {t.p10 * 100:.1f} [{low * 100:.1f}, {high * 100:.1f}]" in text
+    assert f"= {t.p10 / 0.25:.0%} [{low / 0.25:.0%}, {high / 0.25:.0%}] of nominal" in text
+    assert t.to_json()["intervals"]["p10"] == pytest.approx(list(iv["p10"]))
+    # too few robots for a 10th percentile to mean anything: no intervals, no block
+    few = sens.Transfer("gait", 0.25, t.sweeps, distances[:8])
+    assert few.intervals() is None and few.to_json()["intervals"] is None
+    assert "how sure" not in sens.table([few], _plan(8))
+
+
 def test_a_build_plays_its_own_programs_timing_on_every_robot(
     traced_build: Callable[..., Path], cli: Callable[..., CliRun], tmp_path: Path
 ) -> None:

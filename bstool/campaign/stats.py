@@ -16,10 +16,12 @@ from typing import Any
 
 import numpy as np
 
-CONFIDENCE = 0.95
+from bstool.experiments.bootstrap import CONFIDENCE as CONFIDENCE  # re-exported: the report
+from bstool.experiments.bootstrap import RESAMPLES as RESAMPLES
+from bstool.experiments.bootstrap import SEED as SEED
+from bstool.experiments.bootstrap import interval as _bootstrap
+
 ALPHA = 0.05
-RESAMPLES = 9999
-SEED = 0
 
 HOLDS = "holds"
 FAILS = "does not hold"
@@ -50,24 +52,6 @@ class Interval:
         if self.low is None or self.high is None:
             return f"{m} (n = {self.n})"
         return f"{m} [{self.low * scale:.{digits}f}, {self.high * scale:.{digits}f}]"
-
-
-def _bootstrap(data: tuple[np.ndarray, ...], statistic: Any) -> tuple[float, float]:
-    from scipy import stats
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # a degenerate sample (all equal) is a point interval
-        res = stats.bootstrap(
-            data,
-            statistic,
-            n_resamples=RESAMPLES,
-            confidence_level=CONFIDENCE,
-            method="percentile",
-            vectorized=True,
-            random_state=np.random.default_rng(SEED),
-        )
-    ci = res.confidence_interval
-    return float(ci.low), float(ci.high)
 
 
 def _mean(x: np.ndarray, axis: int = -1) -> np.ndarray:

@@ -21,12 +21,16 @@ from typing import Any
 
 import numpy as np
 
+from bstool.experiments import bootstrap
 from bstool.robot import RobotSpec
 from bstool.robot.robotfile import Robot
 
 SENSITIVITY_STREAM = 0x53454E53  # "SENS": the joint sample's random stream
 DEFAULT_POINTS = 5
 DEFAULT_SAMPLES = 32
+#: below this many robots the joint sample's intervals are not given (a 10th percentile of
+#: fewer than 10 values is its smallest one, and its bootstrap interval says nothing)
+MIN_SAMPLES_FOR_INTERVALS = 10
 
 #: evaluate(sequences, robots) -> distances (metres), one per (sequence, robot) pair
 Evaluate = Callable[[list[np.ndarray], list[RobotSpec | None]], list[float]]
@@ -105,6 +109,19 @@ class Transfer:
         """The joint sample's mean as a fraction of the nominal distance."""
         return self.mean / self.nominal if self.nominal > 0 else 0.0
 
+    def intervals(self) -> dict[str, tuple[float, float]] | None:
+        """95 % bootstrap intervals of the joint sample's mean and 10th percentile (metres),
+        None below :data:`MIN_SAMPLES_FOR_INTERVALS` robots: how sure those two figures are
+        with this many robots (a target such as "p10 at least half the nominal" is met only
+        when its whole interval is)."""
+        if len(self.joint) < MIN_SAMPLES_FOR_INTERVALS:
+            return None
+        data = (np.asarray(self.joint, dtype=float),)
+        return {
+            "mean": bootstrap.interval(data, np.mean),
+            "p10": bootstrap.interval(data, _p10),
+        }
+
     def hurts_most(self, name: str) -> tuple[float, float]:
         """(value, distance) of the sweep point of ``name`` with the shortest distance."""
         return min(self.sweeps[name], key=lambda p: p[1])
@@ -118,6 +135,7 @@ class Transfer:
             "worst": self.worst,
             "worst_tenth_mean": self.worst_tenth,
             "kept": self.kept,
+            "intervals": _json_intervals(self.intervals()),
             "sweeps": {k: [list(p) for p in v] for k, v in self.sweeps.items()},
             "hurts_most": {
                 k: {"value": self.hurts_most(k)[0], "distance": self.hurts_most(k)[1]}
@@ -127,6 +145,16 @@ class Transfer:
             "drivers": dict(self.drivers),
             **self.extra,
         }
+
+
+def _p10(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.percentile(x, 10, axis=axis)
+
+
+def _json_intervals(
+    intervals: dict[str, tuple[float, float]] | None,
+) -> dict[str, list[float]] | None:
+    return None if intervals is None else {k: list(v) for k, v in intervals.items()}
 
 
 def measure(name: str, states: np.ndarray, plan: Design, evaluate: Evaluate) -> Transfer:
@@ -217,6 +245,21 @@ def table(results: Sequence[Transfer], plan: Design) -> str:
             f"{t.name[:23]:<24}{t.nominal * 100:9.2f}{t.mean * 100:8.2f}{t.p10 * 100:8.2f}"
             f"{t.worst * 100:8.2f}{t.worst_tenth * 100:10.2f}{t.kept:7.0%}"
         )
+    sure = [(t, t.intervals()) for t in results]
+    if all(iv is not None for _, iv in sure):
+        lines.append("")
+        lines.append(
+            f"how sure, with {len(plan.joint)} robots: {bootstrap.CONFIDENCE:.0%} bootstrap "
+            "intervals (cm; p10 also as a fraction of nominal)"
+        )
+        for t, iv in sure:
+            assert iv is not None
+            (m_lo, m_hi), (p_lo, p_hi) = iv["mean"], iv["p10"]
+            lines.append(
+                f"  {t.name[:23]}: mean {t.mean * 100:.1f} [{m_lo * 100:.1f}, {m_hi * 100:.1f}]; "
+                f"p10 {t.p10 * 100:.1f} [{p_lo * 100:.1f}, {p_hi * 100:.1f}]"
+                + _of_nominal(t.p10, p_lo, p_hi, t.nominal)
+            )
     lines.append("")
     lines.append("one at a time: the value of each parameter that hurts most (distance there, cm)")
     for key in plan.sweeps:
@@ -236,6 +279,12 @@ def table(results: Sequence[Transfer], plan: Design) -> str:
             cells = [f"{t.name[:14]}: {_rho(t.drivers.get(key))}" for t in results]
             lines.append(f"  {key}: " + "; ".join(cells))
     return "\n".join(lines)
+
+
+def _of_nominal(value: float, low: float, high: float, nominal: float) -> str:
+    if nominal <= 0:
+        return ""
+    return f" = {value / nominal:.0%} [{low / nominal:.0%}, {high / nominal:.0%}] of nominal"
 
 
 def _rho(value: float | None) -> str:
