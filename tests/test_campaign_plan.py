@@ -45,6 +45,7 @@ def test_the_settings_are_evolves_options_less_the_run_options() -> None:
         "robot",
         "randomize",
         "randomize-samples",
+        "randomize-box",
     } <= set(SETTINGS)
     assert not {"out", "resume", "force", "workers", "cluster", "quiet", "seed"} & set(SETTINGS)
 

@@ -410,3 +410,66 @@ def test_a_randomized_file_without_its_seed_is_not_replayed(
     capsys.readouterr()
     assert main(["simulate", str(bad), "--stamp-timed", "--json", "-q"]) == 2
     assert "records no seed" in capsys.readouterr().err
+
+
+def test_a_box_of_its_own_trains_on_it_and_keeps_the_robots_uncertainty(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--randomize-box: training and validation draws come from the box file's [uncertain]
+    table; best.json records the robot as given (here the default one, so the default box
+    for sensitivity and reports) and the box in ga.randomize."""
+    corner = tmp_path / "corner.toml"
+    corner.write_text(
+        '[uncertain]\nfriction = { range = [0.85, 1.0], distribution = "log-uniform" }\n'
+    )
+    out = tmp_path / "run"
+    args = ["evolve", "ca1d", "--pop", "4", "--gens", "2", "--randomize", "--randomize-samples",
+            "3", "--validation-samples", "5", "--randomize-box", str(corner)]  # fmt: skip
+    assert main([*args, "--out", str(out), *TOY]) == 0
+    best = json.loads((out / "best.json").read_text())
+    box = {"friction": {"range": [0.85, 1.0], "distribution": "log-uniform"}}
+    assert best["ga"]["randomize"]["box"] == box
+    assert "robot" not in best or "uncertain" not in best["robot"]  # the robot: the default
+    from bstool.evolve.checkpoint import load_checkpoint
+
+    state, extra = load_checkpoint(out)
+    assert extra["randomize"]["box"] == box and state.randomize is not None
+    robot = state.robot or Robot()
+    for step in range(2):
+        drawn = training_robots(robot, state.randomize, state.params.seed, step)
+        assert all(0.85 <= r.friction <= 1.0 for r in drawn)
+        assert {r.servo_torque for r in drawn} == {robot.spec.servo_torque}  # not in the box
+    checks = validation_robots(robot, state.randomize, state.params.seed)
+    assert len(checks) == 5 and all(0.85 <= r.friction <= 1.0 for r in checks)
+    # without the box, the same seed draws from the robot's own (default) box
+    plain = training_robots(robot, Randomize(samples=3), state.params.seed, 0)
+    assert any(r.servo_torque != robot.spec.servo_torque for r in plain)
+    # resume: the same box is fine, another is refused
+    assert main(["evolve", "--resume", str(out), "--randomize-box", str(corner), "--gens", "3",
+                 "-q"]) == 0  # fmt: skip
+    other = tmp_path / "other.toml"
+    other.write_text("[uncertain]\nfriction = { range = [0.3, 1.0] }\n")
+    assert main(["evolve", "--resume", str(out), "--randomize-box", str(other), "-q"]) == 2
+    assert "--randomize-box is" in capsys.readouterr().err
+
+
+def test_box_mistakes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "run"
+    none = tmp_path / "none.toml"
+    none.write_text("friction = 0.5\n")
+    empty = tmp_path / "empty.toml"
+    empty.write_text("[uncertain]\n")
+    absolute = tmp_path / "absolute.toml"
+    absolute.write_text("[uncertain]\nfriction = { range = [0.0, 1.0] }\n")
+    base = ["evolve", "ca1d", "--pop", "4", "--gens", "1", "--out", str(out), *TOY]
+    assert main([*base, "--randomize-box", str(none)]) == 2
+    assert "--randomize-box only applies with --randomize" in capsys.readouterr().err
+    assert main([*base, "--randomize", "--randomize-box", str(none)]) == 2
+    assert f"{none} has no [uncertain] table" in capsys.readouterr().err
+    assert main([*base, "--randomize", "--randomize-box", str(empty)]) == 2
+    assert f"{empty} has an empty [uncertain] table" in capsys.readouterr().err
+    assert main([*base, "--randomize", "--randomize-box", str(absolute)]) == 2
+    assert "uncertain.friction" in capsys.readouterr().err  # a range reaching 0: named
+    assert main([*base, "--randomize", "--randomize-box", str(tmp_path / "nope.toml")]) == 2
+    assert "robot file not found" in capsys.readouterr().err
+    assert not out.exists()  # nothing written by a refused run

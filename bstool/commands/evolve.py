@@ -154,6 +154,11 @@ _D = opt.default
               help="--randomize: the physics step of the training draws (validation and best.json "
               "stay at the robot's timestep; docs/robot.md 'Timestep fidelity'; the robot's "
               "step or finer: train at the robot's)  [default: 0.003]")  # fmt: skip
+@click.option("--randomize-box", type=click.Path(dir_okay=False), metavar="FILE",
+              help="--randomize: draw the robots from this robot file's [uncertain] table "
+              "instead of the robot's own (e.g. the hard corner of its ranges); only that table "
+              "is read, and the robot keeps its own uncertainty for sensitivity and reports "
+              "[default: the robot's]")  # fmt: skip
 @click.option("--init", type=click.Path(dir_okay=False), metavar="C.json",
               help="Start from this controller of MODEL instead of a random population: row 0 "
               "is it, the others copies mutated with P_M (recorded: file, hash).")  # fmt: skip
@@ -224,6 +229,7 @@ _RANDOMIZE_OPTIONS = (
     "validate_every",
     "validation_samples",
     "train_timestep",
+    "randomize_box",
 )
 
 
@@ -235,9 +241,9 @@ def _randomize_given(given: dict[str, Any]) -> dict[str, Any]:
         return {}
     if all(v is None for v in typed.values()):
         return {"randomize": True}
-    opt.randomize_settings(True, *typed.values())  # checks each value typed
+    checked = opt.randomize_settings(True, *typed.values())["randomize"]  # each value typed
     keys = dict(zip(_RANDOMIZE_OPTIONS[1:], OPTION_FLAGS, strict=True))  # option -> setting
-    return {"randomize": {keys[k]: v for k, v in typed.items() if v is not None}}
+    return {"randomize": {keys[k]: checked[keys[k]] for k, v in typed.items() if v is not None}}
 
 
 def _mode(plan: Plan) -> str:

@@ -193,6 +193,7 @@ def plan_new(
     validate_every: int | None = None,
     validation_samples: int | None = None,
     train_timestep: float | None = None,
+    randomize_box: Any = None,
     init: str | os.PathLike[str] | None = None,
 ) -> Plan:
     """A new run, checked; ``robot``: a robot file (or ``bstool.robot.robotfile.Robot``),
@@ -210,17 +211,22 @@ def plan_new(
             validate_every,
             validation_samples,
             train_timestep,
+            randomize_box,
         )
     )
     loaded, record = opt.robot_settings(robot)
     extra.update(record)
-    if "randomize" in extra and loaded is not None and not loaded.box.ranges:
-        raise InputError(
-            f"--randomize: {loaded.source} has an empty [uncertain] table, so every robot "
-            "drawn would be the nominal one",
-            hint="give the table some ranges, or drop it for the default box, or evolve "
-            "without --randomize",
-        )
+    if "randomize" in extra:
+        from bstool.robot.robotfile import Robot
+
+        box = Randomize.from_json(extra["randomize"]).training_box(loaded or Robot())
+        if loaded is not None and not box.ranges:
+            raise InputError(
+                f"--randomize: {loaded.source} has an empty [uncertain] table, so every robot "
+                "drawn would be the nominal one",
+                hint="give the table some ranges, or drop it for the default box, or evolve "
+                "without --randomize",
+            )
     directory, replace = (None, False) if out is None else check_out(out, force=force)
     problem = Problem(opt.check_model(model), transitions=params.transitions)
     file = None if timing is None else str(timing)
@@ -445,12 +451,15 @@ def evolve(
     validate_every: int | None = None,
     validation_samples: int | None = None,
     train_timestep: float | None = None,
+    randomize_box: Any = None,
     init: str | os.PathLike[str] | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).
 
     ``robot``: a robot file or ``bstool.robot.robotfile.Robot`` (``--robot``); ``randomize``
-    and the ``randomize_*``/``validat*`` keywords: ``--randomize`` and its options.
+    and the ``randomize_*``/``validat*``/``train_timestep`` keywords: ``--randomize`` and its
+    options (``randomize_box``: a robot file or ``Robot`` whose ``[uncertain]`` table is the
+    box to train on, apart from the robot's own uncertainty).
 
     ``stamp_timed=True`` (``--stamp-timed``, ``period`` = ``--period``, ``timing`` =
     ``--timing``, a bstool.timing/1 file recorded by sha256, ``schedule_builds`` =
@@ -485,7 +494,8 @@ def evolve(
         period=period, timing=timing, schedule_builds=schedule_builds, robot=robot,
         randomize=randomize, randomize_samples=randomize_samples,
         randomize_score=randomize_score, validate_every=validate_every,
-        validation_samples=validation_samples, train_timestep=train_timestep, init=init,
+        validation_samples=validation_samples, train_timestep=train_timestep,
+        randomize_box=randomize_box, init=init,
     )  # fmt: skip
     return execute(
         plan,

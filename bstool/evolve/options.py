@@ -234,12 +234,14 @@ def randomize_settings(
     validate_every: Any = None,
     validation_samples: Any = None,
     train_timestep: Any = None,
+    box: Any = None,
 ) -> dict[str, Any]:
-    """What a run saves for ``--randomize`` and its options (nothing without it)."""
+    """What a run saves for ``--randomize`` and its options (nothing without it); ``box``: a
+    robot file (or ``Robot``) whose ``[uncertain]`` table is the box to train on."""
     from bstool.evolve.randomize import DEFAULT_TRAIN_TIMESTEP, OPTION_FLAGS, Randomize
 
     if not randomize:
-        values = (samples, score, validate_every, validation_samples, train_timestep)
+        values = (samples, score, validate_every, validation_samples, train_timestep, box)
         for flag, value in zip(OPTION_FLAGS.values(), values, strict=True):
             if value is not None:
                 raise InputError(f"{flag} only applies with --randomize", hint="add --randomize")
@@ -252,8 +254,26 @@ def randomize_settings(
         validation_samples=d.validation_samples if validation_samples is None
         else validation_samples,
         train_timestep=DEFAULT_TRAIN_TIMESTEP if train_timestep is None else train_timestep,
+        box=None if box is None else box_table(box),
     )  # fmt: skip
     return {"randomize": settings.to_json()}
+
+
+def box_table(box: Any) -> dict[str, Any]:
+    """``--randomize-box``: the ``[uncertain]`` table of a robot file (or of a ``Robot``);
+    only that table is read, the robot's values come from ``--robot``."""
+    from bstool.robot import robotfile
+
+    loaded = box if isinstance(box, robotfile.Robot) else robotfile.load(box)
+    if loaded.uncertain is None or not loaded.uncertain.ranges:
+        what = "no" if loaded.uncertain is None else "an empty"
+        raise InputError(
+            f"--randomize-box: {loaded.source} has {what} [uncertain] table, so there is no "
+            "box to draw the robots from",
+            hint="give it ranges (`bstool robot` shows the syntax), or drop --randomize-box "
+            "to train on the robot's own uncertainty",
+        )
+    return loaded.uncertain.to_toml_table()
 
 
 def robot_settings(robot: Any) -> tuple[Any, dict[str, Any]]:

@@ -10,6 +10,9 @@ validation set (docs/evolution.md "Randomized physics").
   sequence *and* robot, so an old score is never reused for new robots.
 - Score: the mean over the K robots, or the mean of the worst quarter (``worst-quarter``:
   ⌈K/4⌉ lowest), after the scoring mode (plain, ``--robust``, ``--coevolve-faults``) on each.
+- The box: the robot's uncertain ranges, or a box of its own (``--randomize-box``, e.g. the
+  hard corner of the robot's uncertainty), recorded in the settings; training and validation
+  robots both come from it, while the robot keeps its own uncertainty for the reports.
 - Validation: every ``validate_every`` steps and at the last one, the step's best runs on
   ``validation_samples`` robots seeded apart from the training draws; history.csv records the
   mean, and best.json is the candidate with the best validation mean (scores of different
@@ -29,6 +32,7 @@ import numpy.typing as npt
 from bstool.errors import InputError
 from bstool.robot import RobotSpec
 from bstool.robot.robotfile import Robot
+from bstool.robot.uncertain import Uncertainty, parse_uncertain
 
 Floats = npt.NDArray[np.float64]
 SCORES = ("mean", "worst-quarter")
@@ -50,6 +54,7 @@ OPTION_FLAGS = {
     "validate_every": "--validate-every",
     "validation_samples": "--validation-samples",
     "train_timestep": "--train-timestep",
+    "box": "--randomize-box",
 }
 
 
@@ -62,6 +67,10 @@ class Randomize:
     validate_every: int = DEFAULT_VALIDATE_EVERY
     validation_samples: int = DEFAULT_VALIDATION_SAMPLES
     train_timestep: float | None = None  # the training draws' physics step (None: the robot's)
+    #: the box the draws come from, an [uncertain] table (None: the robot's own uncertainty).
+    #: Apart from the robot's, so that a gait trained on a narrower box (the hard corner of a
+    #: robot's uncertainty, say) still records the robot as the user describes it.
+    box: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.score not in SCORES:
@@ -81,6 +90,8 @@ class Randomize:
             raise InputError(
                 f"--train-timestep must be a step in seconds in (0, 0.01], got {step!r}"
             )
+        if self.box is not None and not isinstance(self.box, dict):
+            raise InputError(f"a run's randomize box must be a table, got {self.box!r}")
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -91,7 +102,16 @@ class Randomize:
         }
         if self.train_timestep is not None:
             out["train_timestep"] = self.train_timestep
+        if self.box is not None:
+            out["box"] = self.box
         return out
+
+    def training_box(self, robot: Robot) -> Uncertainty:
+        """The ranges the training and validation robots are drawn from: ``box`` (checked
+        against ``robot``'s nominal values) if set, else the robot's own uncertainty."""
+        if self.box is None:
+            return robot.box
+        return parse_uncertain(self.box, robot.spec, "the run's randomize settings", section="box")
 
     def training_spec(self, nominal: RobotSpec) -> RobotSpec:
         """The nominal robot as training runs it: at ``train_timestep`` if set and coarser than
@@ -116,7 +136,8 @@ class Randomize:
 
 def training_robots(robot: Robot, settings: Randomize, seed: int, step: int) -> list[RobotSpec]:
     """The K robots every candidate of ``step`` meets (at the training timestep)."""
-    drawn = robot.box.samples(robot.spec, settings.samples, seed=[seed, RANDOMIZE_STREAM, step])
+    box = settings.training_box(robot)
+    drawn = box.samples(robot.spec, settings.samples, seed=[seed, RANDOMIZE_STREAM, step])
     train = settings.training_spec(robot.spec)
     if train is robot.spec:
         return drawn
@@ -125,7 +146,7 @@ def training_robots(robot: Robot, settings: Randomize, seed: int, step: int) -> 
 
 def validation_robots(robot: Robot, settings: Randomize, seed: int) -> list[RobotSpec]:
     """The fixed validation set of a run (the same for every step)."""
-    return robot.box.samples(
+    return settings.training_box(robot).samples(
         robot.spec, settings.validation_samples, seed=[seed, VALIDATION_STREAM]
     )
 
