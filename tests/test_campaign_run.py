@@ -262,3 +262,52 @@ def test_a_log_gets_the_time_left(
     assert lines[0].startswith("campaign: nnsig-s1 generation 2 of 4, best ")
     assert not [x for x in lines if "about ? left" in x]
     assert len(lines) == 4  # generation 2 of each run (its last one is the "finished" line)
+
+
+def test_generations_no_session_timed_are_said_so(
+    uninterrupted: Path, tmp_path: Path, cli: Any
+) -> None:
+    """A session killed before it saved its record leaves generations that no time covers:
+    the run's wall time and the campaign's say they are lower bounds."""
+    import shutil
+
+    d = tmp_path / "K"
+    shutil.copytree(uninterrupted, d)
+    record = rec.load(d)
+    run = record.runs[RUNS[0]]
+    made = run.steps
+    run.steps = made - 1  # as if the last generation's session had been killed
+    rec.save(d, record)
+    assert cli("report", str(d), "-q", "--force").code == 0
+    tables = (d / "report" / "tables.md").read_text()
+    assert f"for {made - 1} of its {made} generations |" in tables
+    assert "1 generation was made by a session killed before it saved its time" in tables
+    html = (d / "report" / "index.html").read_text()
+    assert "so it is a lower bound" in html
+    shown = json.loads((d / "report" / "report.json").read_text())
+    assert sum(r["untimed_steps"] for r in shown["runs"]) == 1
+
+
+def test_a_randomize_box_in_the_plan_is_recorded_and_held_to(
+    tmp_path: Path, cli: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`randomize-box` (a path, relative to where the campaign runs) reaches each run, which
+    records the table; a box file changed afterwards no longer matches the runs."""
+    monkeypatch.chdir(tmp_path)
+    box = tmp_path / "box.toml"
+    box.write_text("[uncertain]\nfriction = { range = [0.85, 1.0] }\n")
+    plan = tmp_path / "plan.toml"
+    plan.write_text(
+        PLAN.replace('models = ["nnsig", "ca1d"]', 'models = ["ca1d"]')
+        .replace("seeds = [1, 2]", "seeds = [1]")
+        .replace("[evolve.ca1d]\ngens = 3\n", "")
+        + "randomize = true\nrandomize-samples = 2\nvalidation-samples = 2\n"
+        + 'randomize-box = "box.toml"\n'
+    )
+    assert campaign(cli, plan, tmp_path / "R").code == 0
+    best = json.loads((tmp_path / "R" / "runs" / "ca1d-s1" / "best.json").read_text())
+    assert best["ga"]["randomize"]["box"] == {"friction": {"range": [0.85, 1.0]}}
+    assert campaign(cli, plan, tmp_path / "R").code == 0  # the same box: nothing to do
+    box.write_text("[uncertain]\nfriction = { range = [0.3, 1.0] }\n")
+    changed = campaign(cli, plan, tmp_path / "R")
+    assert changed.code == 2 and "run ca1d-s1" in changed.err and "the plan says" in changed.err

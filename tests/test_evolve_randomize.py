@@ -450,7 +450,9 @@ def test_a_box_of_its_own_trains_on_it_and_keeps_the_robots_uncertainty(
     other = tmp_path / "other.toml"
     other.write_text("[uncertain]\nfriction = { range = [0.3, 1.0] }\n")
     assert main(["evolve", "--resume", str(out), "--randomize-box", str(other), "-q"]) == 2
-    assert "--randomize-box is" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--randomize-box: the file's [uncertain] table is not the box the run in" in err
+    assert "(another box)" in err and "a resumed run keeps its settings" in err
 
 
 def test_box_mistakes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -471,5 +473,65 @@ def test_box_mistakes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert main([*base, "--randomize", "--randomize-box", str(absolute)]) == 2
     assert "uncertain.friction" in capsys.readouterr().err  # a range reaching 0: named
     assert main([*base, "--randomize", "--randomize-box", str(tmp_path / "nope.toml")]) == 2
-    assert "robot file not found" in capsys.readouterr().err
+    assert "--randomize-box: robot file not found" in capsys.readouterr().err
     assert not out.exists()  # nothing written by a refused run
+
+
+def test_a_box_is_taken_around_the_runs_robot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    robot = tmp_path / "robot.toml"
+    robot.write_text("friction = 0.6\n[uncertain]\n")  # an empty table: the box supplies one
+    box = tmp_path / "box.toml"
+    box.write_text("[uncertain]\nfriction = { scale = [0.5, 0.6] }\n")
+    out = tmp_path / "run"
+    base = ["evolve", "ca1d", "--pop", "4", "--gens", "1", "--randomize",
+            "--validation-samples", "3", "--robot", str(robot)]  # fmt: skip
+    assert main([*base, "--randomize-box", str(box), "--out", str(out), *TOY]) == 0
+    from bstool.evolve.checkpoint import load_checkpoint
+
+    state, _extra = load_checkpoint(out)
+    assert state.robot is not None and state.randomize is not None
+    drawn = training_robots(state.robot, state.randomize, state.params.seed, 0)
+    assert all(0.3 <= r.friction <= 0.36 for r in drawn)  # x0.5-0.6 of the run's 0.6
+    # a box file that states other robot values than the run's is refused, naming both
+    stating = tmp_path / "stating.toml"
+    stating.write_text("friction = 0.9\n[uncertain]\nfriction = { scale = [0.9, 1.1] }\n")
+    assert main([*base, "--randomize-box", str(stating), "--out", str(tmp_path / "s"), *TOY]) == 2
+    err = capsys.readouterr().err
+    assert f"{stating} sets friction = 0.9, but the run's robot has 0.6" in err
+    assert "keep only the [uncertain] table" in err and not (tmp_path / "s").exists()
+    same = tmp_path / "same.toml"
+    same.write_text("friction = 0.6\n[uncertain]\nfriction = { scale = [0.9, 1.1] }\n")
+    assert main([*base, "--randomize-box", str(same), "--out", str(tmp_path / "m"), *TOY]) == 0
+    # resuming a run started without a box, with one: refused, saying so
+    plain = tmp_path / "plain"
+    assert main([*base[:-2], "--out", str(plain), *TOY]) == 0
+    assert main(["evolve", "--resume", str(plain), "--randomize-box", str(box), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "is not the box the run in" in err and "without --randomize-box" in err
+
+
+def test_the_api_takes_a_robot_as_the_box(tmp_path: Path) -> None:
+    from bstool.errors import InputError
+    from bstool.robot.robotfile import parse
+
+    corner = parse({"uncertain": {"friction": {"range": [0.85, 1.0]}}}, "corner")
+    result = driver.evolve("ca1d", pop=4, gens=1, transitions=4, seed=3, fitness="toy",
+                           randomize=True, randomize_samples=2, validation_samples=2,
+                           randomize_box=corner)  # fmt: skip
+    assert result.randomize is not None
+    assert result.randomize["box"] == {"friction": {"range": [0.85, 1.0]}}
+    with pytest.raises(InputError, match="must be a robot file"):
+        driver.evolve("ca1d", pop=4, gens=1, fitness="toy", randomize=True,
+                      randomize_box={"friction": {"range": [0.85, 1.0]}})  # type: ignore[arg-type]  # fmt: skip
+
+
+def test_randomize_settings_keep_their_own_box() -> None:
+    table = {"friction": {"range": [0.85, 1.0]}}
+    settings = Randomize(box=table)
+    table["friction"]["range"][0] = 0.1  # the caller's table changes; the settings do not
+    out = settings.to_json()
+    out["box"]["friction"]["range"][1] = 2.0  # nor through what to_json gave
+    assert settings.box == {"friction": {"range": [0.85, 1.0]}}
+    assert hash(settings) == hash(Randomize())  # hashable, the box left out of the hash

@@ -45,16 +45,37 @@ def _run_data(run: runner.Run, results: dict[str, dict[str, Any]]) -> cl.RunData
     )
 
 
+def _untimed_note(generations: int) -> str:
+    """What the campaign's wall time leaves out ("" when nothing)."""
+    if not generations:
+        return ""
+    if generations == 1:
+        what = "1 generation was made by a session killed before it saved its time"
+    else:
+        what = (
+            f"{generations} generations were made by sessions killed before they saved their time"
+        )
+    return f"{what}, so it is a lower bound"
+
+
 def _run_row(run: runner.Run, data: cl.RunData | None, record: rec.Record) -> dict[str, Any]:
     r = record.runs.get(run.name)
     if r is None:  # never seen by bstool campaign (bstool report on a folder it adopts later)
         r = rec.RunRecord(adopted_steps=run.steps_done)
+    made = min(run.steps_done, run.total_steps)
+    # generations in the folder that no saved session timed (a session killed before it
+    # could save its record): the wall time shown is then a lower bound
+    untimed = max(0, made - r.steps - r.adopted_steps)
     if r.adopted_steps and r.steps:
         wall = f"{pace.text(r.wall_s)} for {r.steps} generations; {r.adopted_steps} made before"
     elif r.adopted_steps:
         wall = f"not timed: its {r.adopted_steps} generations were made before the campaign"
+    elif untimed and r.steps:
+        wall = f"{pace.text(r.wall_s)} for {r.steps} of its {made} generations"
     else:
         wall = pace.text(r.wall_s) if r.steps else "—"
+    if untimed and r.adopted_steps:
+        wall += f" ({untimed} more not timed)"
     row: dict[str, Any] = {
         "name": run.name,
         "model": run.spec.model,
@@ -66,6 +87,7 @@ def _run_row(run: runner.Run, data: cl.RunData | None, record: rec.Record) -> di
         "wall_s": r.wall_s,
         "adopted_steps": r.adopted_steps,
         "campaign_steps": r.steps,
+        "untimed_steps": untimed,
         "metrics": None if data is None else _metrics(data),
     }
     return row
@@ -202,6 +224,7 @@ def build(
             "made": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
             "folder": str(base.resolve()),
             "adopted": sum(r["adopted_steps"] > 0 for r in run_rows),
+            "untimed": _untimed_note(sum(r["untimed_steps"] for r in run_rows)),
             "plan": plan.to_json(),
             "plan_text": plan_text,
             "fitness_kind": ", ".join(sorted(kinds)),
@@ -311,7 +334,8 @@ def markdown(context: Mapping[str, Any]) -> str:
         if context["adopted"]
         else ""
     )
-    lines += ["", f"Campaign wall time: {context['campaign_wall']}{adopted}.", ""]
+    untimed = f"; {context['untimed']}" if context["untimed"] else ""
+    lines += ["", f"Campaign wall time: {context['campaign_wall']}{adopted}{untimed}.", ""]
     return "\n".join(lines)
 
 

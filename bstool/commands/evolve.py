@@ -136,8 +136,9 @@ _D = opt.default
     "--randomize",
     is_flag=True,
     help="Score each candidate on K robots drawn from the robot file's [uncertain] ranges "
-    "(the default box without one), the same K for every candidate of a generation, new ones "
-    "each generation; best.json is the best on a fixed validation set (docs/evolution.md).",
+    "(the default box without one; --randomize-box: a box of its own), the same K for every "
+    "candidate of a generation, new ones each generation; best.json is the best on a fixed "
+    "validation set (docs/evolution.md).",
 )
 @click.option("--randomize-samples", type=click.IntRange(min=1),
               help="--randomize: robots per generation, K  [default: 4]")  # fmt: skip
@@ -156,8 +157,9 @@ _D = opt.default
               "step or finer: train at the robot's)  [default: 0.003]")  # fmt: skip
 @click.option("--randomize-box", type=click.Path(dir_okay=False), metavar="FILE",
               help="--randomize: draw the robots from this robot file's [uncertain] table "
-              "instead of the robot's own (e.g. the hard corner of its ranges); only that table "
-              "is read, and the robot keeps its own uncertainty for sensitivity and reports "
+              "instead of the robot's own (e.g. the hard corner of its ranges; robot values in "
+              "FILE must be the robot's), and the robot keeps its own uncertainty for sensitivity "
+              "and reports "
               "[default: the robot's]")  # fmt: skip
 @click.option("--init", type=click.Path(dir_okay=False), metavar="C.json",
               help="Start from this controller of MODEL instead of a random population: row 0 "

@@ -28,7 +28,9 @@ def command(file: str | None, out: str | None) -> None:
         values = [c for c in changes if c != "the uncertain ranges"]
         click.echo("differs from the default robot: " + (", ".join(values) or "nothing"))
         where = "its [uncertain] table" if robot.uncertain is not None else "the default box"
-        ranges = robot.box.describe() or "none (--randomize refuses an empty table)"
+        ranges = robot.box.describe() or (
+            "none (--randomize refuses an empty table without --randomize-box)"
+        )
         click.echo(f"uncertain ({where}): {ranges}")
         return
     text = robotfile.default_text()

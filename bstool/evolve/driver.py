@@ -37,6 +37,7 @@ from bstool.evolve.fitness import (
 from bstool.evolve.problem import Problem
 
 if TYPE_CHECKING:
+    from bstool.robot.robotfile import Robot
     from bstool.sim.timed import ScheduleSource
 
 
@@ -193,7 +194,7 @@ def plan_new(
     validate_every: int | None = None,
     validation_samples: int | None = None,
     train_timestep: float | None = None,
-    randomize_box: Any = None,
+    randomize_box: str | os.PathLike[str] | Robot | None = None,
     init: str | os.PathLike[str] | None = None,
 ) -> Plan:
     """A new run, checked; ``robot``: a robot file (or ``bstool.robot.robotfile.Robot``),
@@ -220,6 +221,7 @@ def plan_new(
         from bstool.robot.robotfile import Robot
 
         box = Randomize.from_json(extra["randomize"]).training_box(loaded or Robot())
+        opt.check_box_robot(randomize_box, loaded or Robot())
         if loaded is not None and not box.ranges:
             raise InputError(
                 f"--randomize: {loaded.source} has an empty [uncertain] table, so every robot "
@@ -451,7 +453,7 @@ def evolve(
     validate_every: int | None = None,
     validation_samples: int | None = None,
     train_timestep: float | None = None,
-    randomize_box: Any = None,
+    randomize_box: str | os.PathLike[str] | Robot | None = None,
     init: str | os.PathLike[str] | None = None,
 ) -> EvolveResult:
     """Evolve a ``model`` controller, as ``bstool evolve`` does (same defaults, same files).

@@ -219,6 +219,16 @@ def _check_randomize_typed(
 
     for key, value in typed.items():
         before = saved.get(key)
+        if key == "box" and value != before:
+            was = (
+                "another box" if before is not None
+                else "without --randomize-box (on the robot's own uncertainty)"
+            )  # fmt: skip
+            raise InputError(
+                f"--randomize-box: the file's [uncertain] table is not the box the run in "
+                f"{directory} was started with ({was})",
+                hint="a resumed run keeps its settings; give the run's own box or none",
+            )
         if value != before:
             raise InputError(
                 f"{OPTION_FLAGS[key]} is {value!r} but the run in {directory} was started "
@@ -261,10 +271,8 @@ def randomize_settings(
 
 def box_table(box: Any) -> dict[str, Any]:
     """``--randomize-box``: the ``[uncertain]`` table of a robot file (or of a ``Robot``);
-    only that table is read, the robot's values come from ``--robot``."""
-    from bstool.robot import robotfile
-
-    loaded = box if isinstance(box, robotfile.Robot) else robotfile.load(box)
+    the robot's values come from ``--robot`` (:func:`check_box_robot`)."""
+    loaded = _load_box(box)
     if loaded.uncertain is None or not loaded.uncertain.ranges:
         what = "no" if loaded.uncertain is None else "an empty"
         raise InputError(
@@ -274,6 +282,46 @@ def box_table(box: Any) -> dict[str, Any]:
             "to train on the robot's own uncertainty",
         )
     return loaded.uncertain.to_toml_table()
+
+
+def check_box_robot(box: Any, robot: Any) -> None:
+    """Refuse a box file that states robot values other than the run's robot's: a relative
+    range (``scale``) is taken around the run's robot, not around the values the box file
+    states, so a file that disagrees would train on other robots than its author meant. (A
+    ``Robot`` given as the box: only its ranges are used, no values to disagree.)"""
+    import tomllib
+
+    if box is None or not isinstance(box, str | os.PathLike):
+        return
+    table = tomllib.loads(Path(box).read_text(encoding="utf-8"))  # read and checked before
+    stated = _load_box(box).spec
+    for key in table:
+        if key in ("format", "uncertain"):
+            continue
+        mine, run = getattr(stated, key), getattr(robot.spec, key)
+        if mine != run:
+            raise InputError(
+                f"--randomize-box: {box} sets {key} = {mine!r}, but the run's robot has "
+                f"{run!r}: the box's ranges are taken around the run's robot",
+                hint="keep only the [uncertain] table in the box file, or give the same "
+                "values as the robot (--robot)",
+            )
+
+
+def _load_box(box: Any) -> Any:
+    from bstool.robot import robotfile
+
+    if isinstance(box, robotfile.Robot):
+        return box
+    if not isinstance(box, str | os.PathLike):
+        raise InputError(
+            f"--randomize-box must be a robot file (a path) or a Robot, got {box!r}",
+            hint="write the box as the [uncertain] table of a robot file",
+        )
+    try:
+        return robotfile.load(box)
+    except InputError as exc:
+        raise InputError(f"--randomize-box: {exc.message}", hint=exc.hint) from None
 
 
 def robot_settings(robot: Any) -> tuple[Any, dict[str, Any]]:

@@ -21,6 +21,7 @@ validation set (docs/evolution.md "Randomized physics").
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from dataclasses import dataclass
@@ -70,7 +71,7 @@ class Randomize:
     #: the box the draws come from, an [uncertain] table (None: the robot's own uncertainty).
     #: Apart from the robot's, so that a gait trained on a narrower box (the hard corner of a
     #: robot's uncertainty, say) still records the robot as the user describes it.
-    box: dict[str, Any] | None = None
+    box: dict[str, Any] | None = dataclasses.field(default=None, hash=False)
 
     def __post_init__(self) -> None:
         if self.score not in SCORES:
@@ -92,6 +93,7 @@ class Randomize:
             )
         if self.box is not None and not isinstance(self.box, dict):
             raise InputError(f"a run's randomize box must be a table, got {self.box!r}")
+        object.__setattr__(self, "box", copy.deepcopy(self.box))  # frozen: its own copy
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -103,7 +105,7 @@ class Randomize:
         if self.train_timestep is not None:
             out["train_timestep"] = self.train_timestep
         if self.box is not None:
-            out["box"] = self.box
+            out["box"] = copy.deepcopy(self.box)
         return out
 
     def training_box(self, robot: Robot) -> Uncertainty:
