@@ -279,5 +279,11 @@ def test_report_has_the_sensitivity_section(controller_file: Path, tmp_path: Pat
     assert min(sens["joint"]) == sens["worst"] and sens["kept"] == sens["mean"] / sens["nominal"]
     assert "How far each gait transfers" in (out / "index.html").read_text()
     assert _png(out / "sensitivity.png")[0] > 100
+    assert sens["intervals"] is None  # 2 robots: too few for an interval of the 10th percentile
+    assert main([*args, "--sensitivity", "10", "--sensitivity-points", "2", "--force"]) == 0
+    ten = json.loads((out / "report.json").read_text())["entries"][0]["sensitivity"]
+    low, high = ten["intervals"]["p10"]
+    cell = f"{ten['p10'] * 100:.2f} cm [{low * 100:.1f}, {high * 100:.1f}]"
+    assert cell in (out / "index.html").read_text()
     assert main([*args, "--sensitivity", "0", "--force"]) == 0
     assert json.loads((out / "report.json").read_text())["entries"][0]["sensitivity"] is None
