@@ -223,7 +223,8 @@ def default_text() -> str:
         "# (absolute, in the key's unit) or `scale = [low, high]` (factors of the value above),",
         '# drawn uniformly or with distribution = "log-uniform". Only physics may be uncertain:',
         "# friction, servo_* and the masses (a mass's inertia scales with it). Sources of the",
-        '# default ranges: docs/robot.md, "Uncertain robot".',
+        '# default ranges: docs/robot.md, "Uncertain robot". (`bstool evolve --randomize-box',
+        "# FILE` trains on another file's table instead, keeping this one for the reports.)",
         "[uncertain]",
     ]
     for r in DEFAULT_BOX.ranges:
