@@ -87,6 +87,8 @@ def command(
     10th percentile, worst and worst-10 % mean, the fraction of the nominal distance kept, per
     parameter the value that hurts most, and the Spearman correlation of the joint sample's
     distances with each parameter (which ones the losses go with: measure those first).
+    From 10 robots up, also the 95 % bootstrap intervals of the mean and the 10th percentile
+    (how sure they are with this many robots).
 
     A CONTROLLER may be a build folder (a `bstool compile` output): its controller, each servo
     moving when the build's own programs do on the twin (as `simulate --build`), not when the
