@@ -34,6 +34,7 @@ def _summary() -> dict[str, object]:
                 "all-three": _figures(0.27, 0.20, 0.15),  # 0.9x, 1.43x, 56 %
                 "tail-only": _figures(0.12, 0.11, 0.07),  # 0.4x, 0.79x, 58 %
                 "nominal-and-mean": _figures(0.40, 0.19, 0.06),  # 1.33x, 1.36x, 15 %
+                "shipped-now": _figures(0.27, 0.20, 0.15),  # all-three under another name
             },
             "verdict": {},
         }
@@ -42,8 +43,11 @@ def _summary() -> dict[str, object]:
 
 def test_ratios_are_against_the_gait_shipped_before_and_the_gaits_own_nominal() -> None:
     tf = _frontier()
-    rows = tf.table(_summary())["nnsig"]
+    table, copies = tf.table(_summary())
+    rows = table["nnsig"]
     assert "shipped" not in rows
+    assert set(rows) == {"all-three", "tail-only", "nominal-and-mean"}
+    assert copies == ["nnsig: shipped-now is all-three (the same figures), counted once"]
     r = rows["all-three"]
     assert r["mean"] == pytest.approx(0.20 / 0.14)
     assert r["p10"] == pytest.approx(0.15 / 0.27)
@@ -57,12 +61,16 @@ def test_a_gait_that_does_not_move_has_no_tail_fraction() -> None:
     tf = _frontier()
     r = tf.ratios(_figures(0.0, 0.0, 0.0), _figures(0.3, 0.14, 0.01))
     assert r["p10"] == 0.0 and tf.met(r) == [False, False, False]
+    still = tf.ratios(_figures(0.3, 0.2, 0.1), _figures(0.0, 0.0, 0.0))  # a baseline that stood
+    assert still["mean"] == 0.0 and still["nominal"] == 0.0
 
 
 def test_a_summary_without_the_baseline_is_refused() -> None:
     tf = _frontier()
     with pytest.raises(SystemExit, match="no 'shipped' gait"):
         tf.table({"nnsin": {"runs": {"a": _figures(0.3, 0.2, 0.1)}}})
+    with pytest.raises(SystemExit, match="no gait besides 'shipped'"):
+        tf.table({"nnsin": {"runs": {"shipped": _figures(0.3, 0.2, 0.1)}}})
 
 
 def test_the_command_prints_the_counts_and_writes_the_plot(
@@ -77,5 +85,13 @@ def test_the_command_prints_the_counts_and_writes_the_plot(
     out = capsys.readouterr().out
     assert "all-three" in out and "3 of 3" in out
     assert "the most targets any meets: 3 of 3" in out
+    assert "3 gaits" in out and "shipped-now is all-three" in out
     assert plot.read_bytes().startswith(b"\x89PNG")
-    assert not list(tmp_path.glob("*.tmp.png"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frontier.png", "summary.json"]
+
+
+def test_the_plot_is_written_in_the_format_its_name_says(tmp_path: Path) -> None:
+    tf = _frontier()
+    table, _ = tf.table(_summary())
+    tf.plot(table, tmp_path / "frontier.pdf")
+    assert (tmp_path / "frontier.pdf").read_bytes().startswith(b"%PDF")
