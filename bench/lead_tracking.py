@@ -42,7 +42,7 @@ def tracking(sim: Simulator, states: np.ndarray) -> dict[str, float]:
         chunk_steps=sim.steps_per_transition,
     )  # fmt: skip
     # the settle's samples first, then one at the end of each transition: keep those
-    angles = np.array(seen[-TRANSITIONS:])
+    angles = np.array(seen[-(len(states) - 1) :])
     targets = sim.angles(states)[1:]
     err = np.degrees(np.abs(targets - angles))
     modules = sim.spec.modules
@@ -50,12 +50,13 @@ def tracking(sim: Simulator, states: np.ndarray) -> dict[str, float]:
     lead[::modules] = True  # leg-major, lead first
     commanded = np.ptp(targets[:, lead], axis=0)
     reached = np.ptp(angles[:, lead], axis=0)
-    travel = np.where(commanded > 0, reached / np.where(commanded > 0, commanded, 1), np.nan)
+    moved = commanded > 0  # a lead commanded to stay has no fraction to give
+    travel = reached[moved] / commanded[moved]
     return {
         "distance": result.distance * 100,
         "lead_err": float(err[:, lead].mean()),
         "other_err": float(err[:, ~lead].mean()),
-        "lead_travel": float(np.nanmean(travel)) if np.isfinite(travel).any() else float("nan"),
+        "lead_travel": float(travel.mean()) if travel.size else float("nan"),
     }
 
 
